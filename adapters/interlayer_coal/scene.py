@@ -1,0 +1,111 @@
+"""A collision scene of named primitive shapes and queries for a moving rigid body.
+
+Poses are 4x4 homogeneous transforms; ``planar(x, y, theta, z)`` builds one for 2D domains.
+Each object is static or movable; a query reports which movable objects a body touches, which is
+what the interface layer turns into ``Obstructs`` facts.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import coal
+import numpy as np
+
+
+def planar(x: float, y: float, theta: float, z: float = 0.0) -> np.ndarray:
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, -s, 0, x], [s, c, 0, y], [0, 0, 1, z], [0, 0, 0, 1.0]])
+
+
+def _transform(T: np.ndarray) -> coal.Transform3s:
+    return coal.Transform3s(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
+
+
+@dataclass
+class Shape:
+    """A primitive with a pose relative to its body: kind "box" (full sizes) or "cylinder"."""
+
+    kind: str
+    dims: tuple
+    local: np.ndarray
+
+    def geometry(self):
+        if self.kind == "box":
+            return coal.Box(*self.dims)
+        if self.kind == "cylinder":
+            return coal.Cylinder(*self.dims)
+        raise ValueError(self.kind)
+
+    @property
+    def radius(self) -> float:
+        """Bounding-sphere radius about the shape's own centre, for a cheap pre-filter."""
+        if self.kind == "box":
+            return 0.5 * math.sqrt(sum(d * d for d in self.dims))
+        r, h = self.dims
+        return math.sqrt(r * r + 0.25 * h * h)
+
+
+class Body:
+    """Shapes that move together (a gripper with fingers, a held block)."""
+
+    def __init__(self, shapes: list[Shape]):
+        self.shapes = shapes
+        self.objects = [coal.CollisionObject(s.geometry()) for s in shapes]
+        self.radii = [s.radius for s in shapes]
+
+    def place(self, T: np.ndarray) -> list[np.ndarray]:
+        centres = []
+        for shape, obj in zip(self.shapes, self.objects):
+            W = T @ shape.local
+            obj.setTransform(_transform(W))
+            centres.append(W[:3, 3])
+        return centres
+
+
+class CollisionScene:
+    def __init__(self):
+        self.bodies: dict[str, Body] = {}
+        self.poses: dict[str, np.ndarray] = {}
+        self.movable: dict[str, bool] = {}
+        self._centres: dict[str, list] = {}
+        self._request = coal.CollisionRequest()
+
+    def add(self, name: str, shapes: list[Shape], pose: np.ndarray, movable: bool) -> None:
+        self.bodies[name] = Body(shapes)
+        self.movable[name] = movable
+        self.set_pose(name, pose)
+
+    def set_pose(self, name: str, pose: np.ndarray) -> None:
+        self.poses[name] = np.asarray(pose, float)
+        self._centres[name] = self.bodies[name].place(self.poses[name])
+
+    def names(self, movable: bool | None = None) -> list[str]:
+        return [n for n, m in self.movable.items() if movable is None or m == movable]
+
+    def hits(self, body: Body, pose: np.ndarray, skip=(), movables: bool = True, first: bool = False) -> set:
+        """Names of scene objects that ``body`` at ``pose`` collides with (stop at one if ``first``)."""
+        centres = body.place(pose)
+        found = set()
+        for name, other in self.bodies.items():
+            if name in skip or (not movables and self.movable[name]):
+                continue
+            if self._collide(body, centres, other, self._centres[name]):
+                found.add(name)
+                if first:
+                    break
+        return found
+
+    def _collide(self, a: Body, ca, b: Body, cb) -> bool:
+        for oa, ra, pa in zip(a.objects, a.radii, ca):
+            for ob, rb, pb in zip(b.objects, b.radii, cb):
+                d = pa - pb
+                if d @ d > (ra + rb) ** 2:
+                    continue
+                result = coal.CollisionResult()
+                if coal.collide(oa, ob, self._request, result):
+                    return True
+        return False
+
+    def bodies_collide(self, a: Body, pose_a, b: Body, pose_b) -> bool:
+        return self._collide(a, a.place(pose_a), b, b.place(pose_b))

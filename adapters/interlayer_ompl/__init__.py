@@ -1,0 +1,1 @@
+"""Motion planners from OMPL: ``ompl:<Planner>`` for each bound geometric planner."""

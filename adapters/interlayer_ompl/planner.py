@@ -1,0 +1,90 @@
+"""OMPL's geometric planners behind interlayer's MotionPlanner (exact solutions only)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from interlayer.motion import MotionPlanner
+
+# Planners that keep improving until the time limit unless a cost threshold says "any path will do".
+OPTIMIZING = {"RRTstar", "PRM", "PRMstar", "BITstar", "FMT", "BFMT", "InformedRRTstar", "SORRTstar", "AORRTC"}
+
+
+def _ompl():
+    from ompl import base as ob, geometric as og, util as ou
+
+    ou.setLogLevel(ou.LogLevel.LOG_WARN)  # OMPL logs to stdout at DEBUG level by default
+    return ob, og
+
+
+class OMPLPlanner(MotionPlanner):
+    """``ompl:<Planner>``: options ``time_limit`` (s per query), ``simplify`` (bool)."""
+
+    def __init__(self, planner: str, time_limit: float = 1.0, simplify: bool = True, options=None):
+        super().__init__(name=f"ompl:{planner}", time_limit=time_limit, options=dict(options or {}))
+        self.planner = planner
+        self.simplify = simplify
+
+    def _space(self, space):
+        ob, _ = _ompl()
+        if space.kind == "se2":
+            s = ob.SE2StateSpace()
+            bounds = ob.RealVectorBounds(2)
+            for i in range(2):
+                bounds.setLow(i, float(space.lower[i]))
+                bounds.setHigh(i, float(space.upper[i]))
+            s.setBounds(bounds)
+            return s
+        s = ob.RealVectorStateSpace(space.dim)
+        bounds = ob.RealVectorBounds(space.dim)
+        for i in range(space.dim):
+            lo, hi = (-math.pi, math.pi) if space.circular[i] else (space.lower[i], space.upper[i])
+            bounds.setLow(i, float(lo))
+            bounds.setHigh(i, float(hi))
+        s.setBounds(bounds)
+        return s
+
+    def _plan(self, space, start, goal, is_valid, time_limit):
+        ob, og = _ompl()
+        ompl_space = self._space(space)
+        se2 = space.kind == "se2"
+        dim = space.dim
+
+        if se2:
+            def to_vec(s):
+                return np.array((s.getX(), s.getY(), s.getYaw()))
+
+            def to_state(q):
+                st = ompl_space.allocState()
+                st.setXY(float(q[0]), float(q[1]))
+                st.setYaw(float(q[2]))
+                return st
+        else:
+            def to_vec(s):  # index, never iterate: iterating an OMPL state segfaults
+                return np.array([s[i] for i in range(dim)])
+
+            def to_state(q):
+                st = ompl_space.allocState()
+                for i in range(dim):
+                    st[i] = float(q[i])
+                return st
+
+        setup = og.SimpleSetup(ompl_space)
+        setup.setStateValidityChecker(lambda s: bool(is_valid(to_vec(s))))  # must be a Python bool
+        setup.setStartAndGoalStates(to_state(start), to_state(goal))
+        si = setup.getSpaceInformation()
+        si.setStateValidityCheckingResolution(max(1e-4, space.resolution / ompl_space.getMaximumExtent()))
+        planner_cls = getattr(og, self.planner)
+        setup.setPlanner(planner_cls(si))
+        if self.planner in OPTIMIZING:
+            objective = ob.PathLengthOptimizationObjective(si)
+            objective.setCostThreshold(ob.Cost(float("inf")))
+            setup.setOptimizationObjective(objective)
+        setup.solve(float(time_limit))
+        if not setup.haveExactSolutionPath():  # an approximate solution is not a path
+            return None
+        if self.simplify:
+            setup.simplifySolution(min(0.1, float(time_limit)))
+        path = setup.getSolutionPath()
+        return [to_vec(path.getState(i)) for i in range(path.getStateCount())]

@@ -1,0 +1,1 @@
+"""Task planners through Unified-Planning: any installed OneshotPlanner engine by name."""

@@ -1,0 +1,152 @@
+"""A TaskPlanner backed by any Unified-Planning OneshotPlanner engine."""
+from __future__ import annotations
+
+import multiprocessing
+import time
+from dataclasses import dataclass, field
+
+from interlayer.planning import TaskPlanner
+
+# FF's algorithm in Fast Downward: enforced hill-climbing with the FF heuristic and helpful actions,
+# then, when EHC fails (it is incomplete), greedy best-first search, as FF does. Fast Downward's
+# iterated() search would do this in one call, but it numbers its plan files (plan.txt.1), which
+# up-fast-downward does not read; so the fallback is a second call. No spaces: up-fast-downward
+# splits the search string on whitespace.
+FF_SEARCHES = ("let(hff,ff(),ehc(hff,preferred=[hff],preferred_usage=PRUNE_BY_PREFERRED))",
+               "let(hff,ff(),lazy_greedy([hff],preferred=[hff]))")
+
+# Engines that ignore UP's timeout: run them in a child process we can stop.
+UNBOUNDED_ENGINES = ("pyperplan", "pyperplan-opt")
+
+
+def _quiet_environment():
+    from unified_planning.environment import get_environment
+
+    env = get_environment()
+    env.credits_stream = None
+    env.error_used_name = False
+    return env
+
+
+@dataclass
+class UPTaskPlanner(TaskPlanner):
+    engine: str = "fast-downward"
+    params: dict = field(default_factory=dict)
+    fallbacks: tuple = ()  # further params to try when the engine fails without proof (FF's EHC -> GBFS)
+    validate: bool = True
+    _builders: dict = field(default_factory=dict)
+
+    def _builder(self, model):
+        from .convert import UPProblemBuilder
+
+        key = id(model)
+        if key not in self._builders:
+            self._builders = {key: UPProblemBuilder(model)}
+        return self._builders[key]
+
+    def _plan(self, model, state, timeout):
+        _quiet_environment()
+        builder = self._builder(model)
+        problem = builder.problem_for(state)
+        deadline = time.perf_counter() + timeout
+        for params in (self.params, *self.fallbacks):
+            left = deadline - time.perf_counter()
+            if self.engine in UNBOUNDED_ENGINES:
+                status, plan, reason = _solve_in_child(self.engine, params, problem, left)
+            else:
+                status, plan, reason = _solve(self.engine, params, problem, left)
+            if status != "incomplete":
+                break
+        if status == "incomplete":
+            status = "unsolvable"
+        if status != "solved":
+            return status, [], reason, None
+        if self.validate:
+            from unified_planning.shortcuts import PlanValidator
+
+            with PlanValidator(problem_kind=problem.kind) as validator:
+                check = validator.validate(problem, plan)
+            if not check.status.name == "VALID":
+                return "error", [], f"UP's validator rejected the plan: {check.reason}", None
+        steps = [(ai.action.name, [p.object().name for p in ai.actual_parameters]) for ai in plan.actions]
+        cost = sum(model.actions[a].cost for a, _ in steps)
+        return "solved", steps, "", cost
+
+
+def _compile_for(engine, problem):
+    """Compile away features the engine lacks (quantifiers, conditional effects, negative conditions)."""
+    from unified_planning.engines import CompilationKind
+    from unified_planning.shortcuts import Compiler
+
+    chain = []
+    for kind, feature in ((CompilationKind.QUANTIFIERS_REMOVING, ("EXISTENTIAL_CONDITIONS", "UNIVERSAL_CONDITIONS", "FORALL_EFFECTS")),
+                          (CompilationKind.CONDITIONAL_EFFECTS_REMOVING, ("CONDITIONAL_EFFECTS",)),
+                          (CompilationKind.DISJUNCTIVE_CONDITIONS_REMOVING, ("DISJUNCTIVE_CONDITIONS",)),
+                          (CompilationKind.NEGATIVE_CONDITIONS_REMOVING, ("NEGATIVE_CONDITIONS",))):
+        if engine.supports(problem.kind):
+            break
+        if any(f in problem.kind.features for f in feature):
+            with Compiler(problem_kind=problem.kind, compilation_kind=kind) as compiler:
+                res = compiler.compile(problem, kind)
+            chain.append(res)
+            problem = res.problem
+    return problem, chain
+
+
+def _solve(engine_name, params, problem, timeout):
+    from unified_planning.engines import PlanGenerationResultStatus as S
+    from unified_planning.shortcuts import OneshotPlanner
+
+    with OneshotPlanner(name=engine_name, params=params or None) as engine:
+        compiled, chain = _compile_for(engine, problem)
+        if not engine.supports(compiled.kind):
+            return "error", None, f"the engine '{engine_name}' cannot handle this problem's features ({sorted(compiled.kind.features)})"
+        res = engine.solve(compiled, timeout=timeout)
+    if res.status in (S.SOLVED_SATISFICING, S.SOLVED_OPTIMALLY) and res.plan is not None:
+        plan = res.plan
+        for step in reversed(chain):
+            plan = plan.replace_action_instances(step.map_back_action_instance)
+        return "solved", plan, ""
+    if res.status == S.TIMEOUT:
+        return "timeout", None, f"the task planner timed out after {timeout:.0f} s"
+    if res.status == S.UNSOLVABLE_PROVEN:
+        return "unsolvable", None, "the task planner proved the state has no plan"
+    if res.status == S.UNSOLVABLE_INCOMPLETELY:
+        return "incomplete", None, "the task planner's (incomplete) search found no plan"
+    logs = " ".join(str(l.message)[-300:] for l in (res.log_messages or [])[-1:])
+    return "unsolvable", None, f"the task planner ended with {res.status.name} {logs}".strip()
+
+
+def _child(conn, engine_name, params, problem, timeout):
+    import warnings
+
+    warnings.filterwarnings("ignore", message=".*does not support timeout")  # we enforce it here
+    try:
+        _quiet_environment()
+        status, plan, reason = _solve(engine_name, params, problem, timeout)
+        names = [(ai.action.name, [p.object().name for p in ai.actual_parameters]) for ai in plan.actions] if plan else None
+        conn.send((status, names, reason))
+    except Exception as exc:  # reported to the parent as an error
+        conn.send(("error", None, f"{type(exc).__name__}: {exc}"))
+
+
+def _solve_in_child(engine_name, params, problem, timeout):
+    """Run an engine that ignores timeouts in a forked child and stop it at the deadline."""
+    from unified_planning.plans import ActionInstance, SequentialPlan
+
+    ctx = multiprocessing.get_context("fork")
+    parent, child = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_child, args=(child, engine_name, params, problem, timeout), daemon=True)
+    proc.start()
+    ready = parent.poll(timeout)
+    if not ready:
+        proc.kill()
+        proc.join()
+        return "timeout", None, f"the task planner '{engine_name}' timed out after {timeout:.0f} s"
+    status, names, reason = parent.recv()
+    proc.join()
+    if status != "solved":
+        return status, None, reason
+    actions = {a.name: a for a in problem.actions}
+    plan = SequentialPlan([ActionInstance(actions[a], [problem.object(o) for o in args]) for a, args in names])
+    return "solved", plan, ""

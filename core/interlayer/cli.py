@@ -1,0 +1,224 @@
+"""The ``interlayer`` command. Exit codes: 0 solved/ok, 1 not solved/invalid, 2 user error.
+
+With ``--json`` only one JSON object goes to stdout; logs and progress go to stderr.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+
+from .errors import UserError
+
+EXIT_OK, EXIT_NOT_SOLVED, EXIT_USER_ERROR = 0, 1, 2
+
+
+def log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def progress_printer(verbose: bool):
+    """Turn trace events into short human-readable lines on stderr."""
+
+    def show(e):
+        t = f"[{e['t']:7.2f}s]"
+        kind = e["type"]
+        if kind == "task_plan":
+            if e["status"] == "solved":
+                steps = "; ".join(f"{s['action']}({', '.join(s['args'])})" for s in e["plan"])
+                log(f"{t} task plan #{e['call']} from step {e['from_step']} ({e['time']:.2f} s): {steps}")
+            else:
+                log(f"{t} task planner call #{e['call']}: {e['status']} {e['reason']}".rstrip())
+        elif kind == "failure":
+            log(f"{t} refinement failed at step {e['step']} {e['action']}: {e['failure']['kind']}"
+                f" {' '.join(e['failure']['objects'])} -> learned {', '.join(e['facts'])}")
+        elif kind == "replan":
+            log(f"{t} replanned from step {e['fail_step']}, kept a prefix of {len(e['prefix'])} action(s)")
+        elif kind == "dead_end":
+            log(f"{t} the updated state at step {e['step']} has no plan; trying the next partial refinement")
+        elif kind == "reset":
+            log(f"{t} reset (epoch {e['epoch']}): {e['reason']}; learned facts cleared, generators reseeded")
+        elif kind == "refined":
+            log(f"{t} refinement found for all {e['steps']} steps")
+        elif kind == "attempt" and verbose:
+            verdict = "ok" if e["ok"] else (e["failure"] or {}).get("detail") or "failed"
+            log(f"{t}   {e['mode']} step {e['step']} {e['action']} [{e['candidate']}]: {verdict}")
+
+    return show
+
+
+def cmd_plan(args) -> int:
+    from . import api
+
+    listeners = [] if args.quiet else [progress_printer(args.verbose)]
+    result = api.solve(args.source, overrides=args.set, listeners=listeners)
+    if args.out:
+        api.write_outputs(result, args.out)
+    if args.viz:
+        from .viz import live_view
+
+        live_view(result)
+    data = result.to_json()
+    if args.json:
+        print(json.dumps(data))
+    else:
+        log("")
+        if result.solved:
+            log(f"Solved in {data['times']['total']:.2f} s with {result.task_planner_calls} task-planner call(s) and "
+                f"{result.replans} replan(s).")
+            for i, s in enumerate(result.plan):
+                log(f"  {i}: {s}")
+        else:
+            log(f"Not solved ({result.status}): {result.reason}")
+        if result.learned_facts:
+            log("Learned facts: " + ", ".join(data["learned_facts"]))
+        if args.out:
+            log(f"Wrote {args.out}/ (result.json, trace.json, config.toml, problem.json"
+                f"{', trajectory.json' if result.solved else ''}).")
+    return EXIT_OK if result.solved else EXIT_NOT_SOLVED
+
+
+def cmd_check(args) -> int:
+    from . import api
+    from .abstraction import abstract
+    from .logic import atom_str
+    from .plugins import PluginHost
+
+    config = api.resolve_config(args.source, args.set)
+    host = PluginHost()
+    model = abstract(api.build_problem(host, config))
+    refs: dict = {}
+    for ref, (sk, _) in model.references.items():
+        refs.setdefault(sk, []).append(ref)
+    report = {
+        "references": refs,
+        "reference_facts": sorted(atom_str(a) for a in model.static_facts),
+        "geometric_predicates": {p: {"occurs": form, "default": form == "positive"} for p, form in model.geometric.items()},
+        "default_true_atoms": len(model.default_true),
+        "uniform": not model.uniformity,
+        "uniformity_violations": model.uniformity,
+        "parameters": model.parameter_roles,
+        "task_view": {a.name: [f"{v} - {t}" for v, t in a.parameters] for a in model.actions.values()},
+    }
+    if args.json:
+        print(json.dumps(report, indent=1))
+        return EXIT_OK
+    print(f"Pose references ({len(model.references)}):")
+    for sk, names in refs.items():
+        print(f"  {sk}: {' '.join(names)}")
+    print("Reference facts: " + " ".join(report["reference_facts"][:12]) + (" ..." if len(report["reference_facts"]) > 12 else ""))
+    print("Geometric predicates and their Prop. 1 defaults:")
+    for p, info in report["geometric_predicates"].items():
+        print(f"  {p}: occurs {info['occurs']}ly -> default {'true' if info['default'] else 'false'}")
+    print("Action parameters:")
+    for a, roles in model.parameter_roles.items():
+        for v, role in roles.items():
+            print(f"  {a} {v}: {role}")
+    if model.uniformity:
+        print("Not uniform w.r.t. the goal and geometric predicates (Def. 1), so Theorem 1 does not apply:")
+        for v in model.uniformity:
+            print(f"  - {v}")
+    else:
+        print("Uniform w.r.t. the goal and the geometric predicates (Def. 1): Theorem 1's completeness holds "
+              "if the problem also has no reachable dead ends (not checked).")
+    return EXIT_OK
+
+
+def cmd_plugins(args) -> int:
+    from .plugins import PluginHost
+
+    host = PluginHost()
+    plugins = []
+    for info in host.plugins():
+        comps = {}
+        for kind, names in info.components.items():
+            reg = host[kind]
+            comps[kind] = [{"name": n, "available": reg.components[n].available, "reason": reg.components[n].reason,
+                            "description": reg.components[n].description} for n in names]
+        plugins.append({"name": info.name, "distribution": info.distribution, "version": info.version,
+                        "hooks": info.hooks, "components": comps})
+    broken = getattr(host, "broken", {})
+    if args.json:
+        print(json.dumps({"plugins": plugins, "broken": broken}, indent=1))
+        return EXIT_OK
+    for p in plugins:
+        print(f"{p['name']}  ({p['distribution']} {p['version']})  hooks: {', '.join(h.replace('interlayer_', '') for h in p['hooks'])}")
+        for kind, comps in p["components"].items():
+            for c in comps:
+                state = "" if c["available"] else f"  [unavailable: {c['reason']}]"
+                print(f"    {kind[:-1].replace('_', ' ')}: {c['name']}{state}")
+    for name, why in broken.items():
+        print(f"{name}: failed to load ({why})")
+    return EXIT_OK
+
+
+def cmd_validate(args) -> int:
+    from . import api
+
+    violations = api.validate(args.out_dir)
+    if args.json:
+        print(json.dumps({"valid": not violations, "violations": violations}))
+    elif violations:
+        log(f"INVALID: {len(violations)} violation(s):")
+        for v in violations:
+            log(f"  - {v}")
+    else:
+        log(f"{args.out_dir}: valid (task plan replayed symbolically, trajectory re-checked).")
+    return EXIT_OK if not violations else EXIT_NOT_SOLVED
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="interlayer", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a config value, e.g. --set planner.task=pyperplan")
+    common.add_argument("--json", action="store_true", help="print one JSON object to stdout")
+
+    p = sub.add_parser("plan", parents=[common], help="solve a problem (config file, problem file or output folder)")
+    p.add_argument("source", metavar="CONFIG_OR_PROBLEM")
+    p.add_argument("--out", metavar="DIR", help="write result.json, trace.json, trajectory.json, ... to DIR")
+    p.add_argument("--viz", action="store_true", help="open a live 3D viewer of the solution")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    p.add_argument("-v", "--verbose", action="store_true", help="show every refinement attempt")
+    p.set_defaults(func=cmd_plan)
+
+    c = sub.add_parser("check", parents=[common], help="show pose references, Prop. 1 defaults and uniformity (Def. 1)")
+    c.add_argument("source", metavar="CONFIG_OR_PROBLEM")
+    c.set_defaults(func=cmd_check)
+
+    pl = sub.add_parser("plugins", help="list plugins and the components they register")
+    pl.add_argument("--json", action="store_true")
+    pl.set_defaults(func=cmd_plugins)
+
+    v = sub.add_parser("validate", help="independently re-check a solved run written with --out")
+    v.add_argument("out_dir", metavar="OUT_DIR")
+    v.add_argument("--json", action="store_true")
+    v.set_defaults(func=cmd_validate)
+    return parser
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except UserError as exc:
+        log(f"error: {exc}")
+        if getattr(args, "json", False):
+            print(json.dumps({"status": "error", "reason": str(exc)}))
+        return EXIT_USER_ERROR
+    except KeyboardInterrupt:
+        log("interrupted")
+        return EXIT_NOT_SOLVED
+    except Exception as exc:  # an internal error: one sentence, the details only with INTERLAYER_DEBUG
+        if os.environ.get("INTERLAYER_DEBUG"):
+            raise
+        log(f"internal error: {type(exc).__name__}: {exc} (set INTERLAYER_DEBUG=1 for the traceback; please report it)")
+        if getattr(args, "json", False):
+            print(json.dumps({"status": "error", "reason": f"{type(exc).__name__}: {exc}"}))
+        return EXIT_NOT_SOLVED
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,17 @@
+"""Errors a user can act on: each message is one plain sentence naming the thing and the fix."""
+
+
+class UserError(Exception):
+    """Bad input (config, problem file, plugin name). The CLI prints it and exits with code 2."""
+
+
+class DomainError(UserError):
+    """A domain declaration that cannot be abstracted (unknown predicate, type, malformed formula)."""
+
+
+def closest(name: str, choices) -> str:
+    """' (did you mean X?)' for the nearest valid name, or ''."""
+    import difflib
+
+    match = difflib.get_close_matches(str(name), [str(c) for c in choices], n=1)
+    return f" (did you mean '{match[0]}'?)" if match else ""

@@ -1,0 +1,177 @@
+"""Alg. 1: the interface layer's outer loop of refinement, failure translation and replanning."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from . import logic
+from .abstraction import TaskModel
+from .domain import GroundStep
+from .refine import Infeasible, PoseGenerator, Refiner, stable_seed
+from .result import Result
+from .trace import Stats, Trace
+
+
+@dataclass(frozen=True)
+class LoopSettings:
+    time_limit: float = 600.0
+    max_traj_count: int = 10
+    max_refine_attempts: int = 100
+    task_timeout: float = 60.0
+    seed: int = 0
+
+
+def plan_json(plan) -> list:
+    return [s.to_json() for s in plan]
+
+
+class InterfaceLayer:
+    """Refines task plans into motion plans, learning geometric facts from failures."""
+
+    def __init__(self, model: TaskModel, task_planner, motion_planner, generators, translators,
+                 settings: LoopSettings, trace: Trace | None = None, stats: Stats | None = None):
+        self.model = model
+        self.geometry = model.problem.geometry
+        self.task_planner = task_planner
+        self.motion = motion_planner
+        self.generators = generators  # action name -> factory(problem, step, world, rng)
+        self.translators = translators  # list of (name, fn(failure, step, model) -> set of atoms)
+        self.settings = settings
+        self.trace = trace or Trace()
+        self.stats = stats or Stats()
+        self.epoch = 0  # bumped by every MaxTrajCount reset: reseeds the pose generators
+        self.learned: list = []
+        self.task_calls = 0
+        self.replans = 0
+
+    # -- pieces -----------------------------------------------------------------------------
+    def _time_left(self) -> float:
+        return self.deadline - time.perf_counter()
+
+    def _out_of_time(self) -> bool:
+        return time.perf_counter() > self.deadline
+
+    def call_task_planner(self, state: frozenset, from_step: int):
+        """callClassicalPlanner (Alg. 1, lines 2 and 10), always with a timeout."""
+        self.task_calls += 1
+        with self.stats.timer("task_planning"):
+            res = self.task_planner.plan(self.model, state, min(self.settings.task_timeout, self._time_left()))
+        self.trace.emit("task_plan", call=self.task_calls, from_step=from_step, status=res.status,
+                        plan=plan_json(res.plan), time=round(res.time, 4), reason=res.reason)
+        if res.status == "error":
+            raise RuntimeError(res.reason)
+        return list(res.plan) if res.status == "solved" else None
+
+    def make_generator(self, index: int, step: GroundStep, world) -> PoseGenerator:
+        factory = self.generators[step.action]
+        problem = self.model.problem
+
+        def candidates(rng):
+            with self.stats.timer("pose_generation"):
+                items = list(factory(problem, step, world, rng))
+            return items
+
+        return PoseGenerator(candidates, stable_seed(self.settings.seed, self.epoch, index, step))
+
+    def translate(self, failure, step: GroundStep) -> set:
+        facts = set()
+        for _, fn in self.translators:
+            facts |= set(fn(failure, step, self.model))
+        return facts
+
+    def progress_all(self, state: frozenset, plan) -> list:
+        """Symbolic states before each step of ``plan`` and after the last one."""
+        states = [state]
+        for s in plan:
+            states.append(self.model.progress(states[-1], s))
+        return states
+
+    def _on_attempt(self, step, candidate, outcome, partial, cached):
+        self.stats.count("refinement_attempts")
+        self.trace.emit("attempt", mode="partial" if partial else "error-free", step=step,
+                        action=str(self.plan[step]), candidate=candidate.label, ok=outcome.ok, cached=cached,
+                        failure=outcome.failure.to_json() if outcome.failure else None)
+
+    # -- Alg. 1 -----------------------------------------------------------------------------
+    def solve(self) -> Result:
+        t0 = time.perf_counter()
+        self.deadline = t0 + self.settings.time_limit
+        try:
+            status, reason, refinement = self._run()
+        except Infeasible as exc:
+            status, reason, refinement = "unsolvable", str(exc), None
+        self.stats.times["total"] = time.perf_counter() - t0
+        accounted = sum(v for k, v in self.stats.times.items() if k != "total")
+        self.stats.times["interface"] = max(0.0, self.stats.times["total"] - accounted)
+        self.trace.emit("end", status=status, reason=reason)
+        return Result(status=status, reason=reason, plan=list(self.plan) if status == "solved" else [],
+                      learned_facts=list(self.learned), replans=self.replans, task_planner_calls=self.task_calls,
+                      times=dict(self.stats.times), counts=dict(self.stats.counts), seed=self.settings.seed,
+                      refinement=refinement, trace=self.trace, problem=self.model.problem, model=self.model)
+
+    def _run(self):
+        init = self.model.init
+        self.plan = []
+        plan = self.call_task_planner(init, 0)  # line 2
+        if plan is None:
+            return self._not_solved("the task planner found no plan for the initial state")
+        self.plan, states = plan, self.progress_all(init, plan)
+        world0 = self.geometry.initial_world()
+        step, prefix, world = 0, {}, world0  # line 3
+        refiner = Refiner(self.geometry, self.motion, self.make_generator, self.settings.max_refine_attempts,
+                          self._out_of_time, self._on_attempt, self.stats)
+        while not self._out_of_time():  # line 4
+            refiner.clear_cache()
+            self.trace.emit("refine", mode="error-free", from_step=step, plan=plan_json(self.plan), epoch=self.epoch)
+            done = _drain(refiner.try_refine(self.plan, step, world, prefix, partial=False))  # line 5
+            if done is not None:
+                self.trace.emit("refined", steps=len(self.plan))
+                return "solved", "", [done.outcomes[i] for i in range(len(self.plan))]  # line 6
+            if self._out_of_time():
+                break
+            self.trace.emit("refine", mode="partial", from_step=step, plan=plan_json(self.plan), epoch=self.epoch)
+            traj_count, new_plan = 0, None
+            for partial in refiner.try_refine(self.plan, step, world, prefix, partial=True):  # lines 7-8
+                f = partial.fail_step
+                facts = self.translate(partial.failure, self.plan[f]) - states[f]
+                if not facts:
+                    continue  # nothing new to tell the task planner: try the next failure
+                traj_count += 1
+                state = states[f] | facts  # line 9
+                self.learned += [a for a in sorted(facts) if a not in self.learned]
+                self.trace.emit("failure", step=f, action=str(self.plan[f]), candidate=partial.candidate.label,
+                                failure=partial.failure.to_json(), facts=[logic.atom_str(a) for a in sorted(facts)],
+                                world=self.geometry.snapshot(partial.world))
+                new_plan = self.call_task_planner(state, f)  # line 10
+                if new_plan is not None:  # lines 11-13
+                    self.replans += 1
+                    old = self.plan
+                    self.plan = old[:f] + new_plan
+                    states = states[:f] + self.progress_all(state, new_plan)
+                    step, prefix, world = f, partial.outcomes, partial.world
+                    self.trace.emit("replan", fail_step=f, prefix=plan_json(old[:f]), new_plan=plan_json(new_plan),
+                                    plan=plan_json(self.plan))
+                    break
+                self.trace.emit("dead_end", step=f, facts=[logic.atom_str(a) for a in sorted(facts)])
+                if traj_count >= self.settings.max_traj_count or self._out_of_time():
+                    break
+            if new_plan is None and not self._out_of_time():  # lines 14-17
+                self.epoch += 1
+                states = self.progress_all(init, self.plan)  # learned facts cleared
+                step, prefix, world = 0, {}, world0
+                self.trace.emit("reset", epoch=self.epoch, traj_count=traj_count,
+                                reason="MaxTrajCount reached" if traj_count >= self.settings.max_traj_count
+                                else "no partial refinement led to a solvable state")
+        return "timeout", f"the time limit of {self.settings.time_limit:g} s was reached before a refinement was found", None
+
+    def _not_solved(self, reason):
+        return "unsolvable", reason, None
+
+
+def _drain(gen):
+    """Run a TryRefine generator in error-free mode to its return value."""
+    try:
+        while True:
+            next(gen)
+    except StopIteration as stop:
+        return stop.value

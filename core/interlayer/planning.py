@@ -1,0 +1,53 @@
+"""The task-planner interface: a planner sees a TaskModel and a symbolic state, returns a plan."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+from .abstraction import TaskModel
+from .domain import GroundStep
+
+
+@dataclass(frozen=True)
+class TaskPlanResult:
+    status: str  # "solved" | "unsolvable" | "timeout" | "error"
+    plan: tuple = ()  # GroundSteps over the task planner's view (dropped args restored)
+    time: float = 0.0
+    reason: str = ""
+    cost: float | None = None
+
+
+@dataclass
+class TaskPlanner:
+    """Template method (Unified-Planning's solve/_solve): ``plan`` times and checks the call,
+    restores dropped arguments and replays the plan symbolically; adapters implement ``_plan``
+    returning (status, [(action, task_args), ...], reason, cost)."""
+
+    name: str = "task-planner"
+    options: dict = field(default_factory=dict)
+
+    def plan(self, model: TaskModel, state: frozenset, timeout: float) -> TaskPlanResult:
+        t0 = time.perf_counter()
+        if timeout <= 0:
+            return TaskPlanResult("timeout", reason="no time left for the task planner")
+        status, raw, reason, cost = self._plan(model, state, timeout)
+        plan = tuple(model.reintroduce(a, tuple(args)) for a, args in raw)
+        if status == "solved":
+            problem = check_plan(model, state, plan)
+            if problem:
+                status, reason = "error", f"the task planner '{self.name}' returned an invalid plan: {problem}"
+        return TaskPlanResult(status, plan, time.perf_counter() - t0, reason, cost)
+
+    def _plan(self, model: TaskModel, state: frozenset, timeout: float):  # pragma: no cover
+        raise NotImplementedError
+
+
+def check_plan(model: TaskModel, state: frozenset, plan) -> str:
+    """Replay a plan with the core's own semantics; '' if it reaches the goal, else why not."""
+    for i, step in enumerate(plan):
+        if not isinstance(step, GroundStep) or step.action not in model.full_actions:
+            return f"step {i} is not an action of the domain"
+        if not model.applicable(state, step):
+            return f"step {i} {step} is not applicable"
+        state = model.progress(state, step)
+    return "" if model.goal_holds(state) else "the goal does not hold at the end"

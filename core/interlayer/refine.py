@@ -1,0 +1,165 @@
+"""Alg. 2 (TryRefine): a backtracking search over pose-reference instantiations.
+
+The domain supplies a ``Geometry`` runtime (how one action is refined between two poses, with the
+motion planner) and pose generators (candidate instantiations of an action's references, each a
+tuple of waypoints). This module knows nothing about robots: it orders the search, backtracks,
+and in partial-trajectory mode yields each failure with the prefix that was refined before it.
+"""
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable, Iterator, Mapping, Protocol
+
+import numpy as np
+
+from .domain import GroundStep
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One instantiation of an action's references: waypoints plus the values given to references."""
+
+    waypoints: tuple
+    values: Mapping[str, Any] = field(default_factory=dict)
+    label: str = ""
+
+
+@dataclass(frozen=True)
+class Failure:
+    """Why an action could not be refined (the failed geometric preconditions)."""
+
+    kind: str  # "obstruction", "ik", "unreachable", ...
+    objects: tuple = ()  # the obstructing objects, for "obstruction"
+    detail: str = ""
+
+    def to_json(self) -> dict:
+        return {"kind": self.kind, "objects": list(self.objects), "detail": self.detail}
+
+
+@dataclass
+class StepOutcome:
+    """What refining one action produced: the world after it and its trajectory, or a failure."""
+
+    ok: bool
+    world: Any = None
+    segments: list = field(default_factory=list)
+    failure: Failure | None = None
+
+
+class Infeasible(Exception):
+    """Raised by a pose generator when a reference can never be instantiated (e.g. no grasp of an
+    object fits the gripper): the run ends as unsolvable with this reason."""
+
+
+class Geometry(Protocol):
+    """The domain's refinement runtime."""
+
+    def initial_world(self) -> Any: ...
+
+    def refine_step(self, step: GroundStep, world: Any, candidate: Candidate, motion) -> StepOutcome: ...
+
+    def snapshot(self, world: Any) -> dict: ...
+
+
+class PoseGenerator:
+    """resetAndGetFirst / getNext over a finite, seeded stream of candidates (Sec. IV-B2)."""
+
+    def __init__(self, factory: Callable[[np.random.Generator], Iterable[Candidate]], seed):
+        self._factory, self._seed = factory, seed
+        self._it: Iterator[Candidate] | None = None
+        self.index = -1
+
+    def reset_and_get_first(self) -> Candidate | None:
+        self._it, self.index = iter(self._factory(np.random.default_rng(self._seed))), -1
+        return self.get_next()
+
+    def get_next(self) -> Candidate | None:
+        if self._it is None:
+            return self.reset_and_get_first()
+        self.index += 1
+        return next(self._it, None)
+
+
+def stable_seed(*parts) -> list[int]:
+    return [zlib.crc32(str(p).encode()) for p in parts]
+
+
+@dataclass
+class PartialRefinement:
+    """One yield of partial-trajectory mode (Alg. 2, line 14)."""
+
+    outcomes: dict  # step index -> StepOutcome, for the refined prefix
+    world: Any  # the world where the prefix ends (pose2 in Alg. 1)
+    fail_step: int
+    failure: Failure
+    candidate: Candidate
+
+
+@dataclass
+class Refinement:
+    outcomes: dict  # step index -> StepOutcome, for every step
+
+
+class Refiner:
+    """Runs TryRefine for one problem; ``make_generator(i, step, world, epoch)`` builds the
+    PoseGenerator of step i, ``on_attempt`` observes each motion-planning attempt."""
+
+    def __init__(self, geometry, motion, make_generator, max_attempts: int, out_of_time, on_attempt=None, stats=None):
+        from .trace import Stats
+
+        self.geometry, self.motion = geometry, motion
+        self.stats = stats or Stats()
+        self.make_generator = make_generator
+        self.max_attempts = max_attempts
+        self.out_of_time = out_of_time
+        self.on_attempt = on_attempt or (lambda **kw: None)
+        self._cache: dict = {}
+
+    def clear_cache(self):
+        self._cache.clear()
+
+    def try_refine(self, plan: list[GroundStep], step: int, world0, prefix: dict, partial: bool):
+        """Alg. 2. A generator: yields PartialRefinement in partial mode; its return value
+        (StopIteration.value) is a Refinement, or None when the search failed or ran out."""
+        n = len(plan)
+        worlds, outcomes = {step: world0}, dict(prefix)
+        chain: list[int] = []  # candidate index per step from `step`: the cache key of a branch
+        gens = {step: self.make_generator(step, plan[step], world0)} if step < n else {}
+        i, attempts = step, 0
+        while step <= i < n:  # line 4
+            if self.out_of_time():
+                return None
+            gen = gens[i]
+            cand = gen.get_next()
+            if cand is None:  # lines 7-10: generator exhausted, backtrack
+                del gens[i]
+                i -= 1
+                if chain:
+                    chain.pop()
+                outcomes.pop(i, None)
+                continue
+            if attempts >= self.max_attempts:
+                return None
+            attempts += 1
+            key = (tuple(plan[step : i + 1]), tuple(chain), gen.index, id(world0))
+            outcome = self._cache.get(key)
+            cached = outcome is not None
+            if not cached:
+                with self.stats.timer("motion_planning"):  # IK and collision checks may be split out inside
+                    outcome = self.geometry.refine_step(plan[i], worlds[i], cand, self.motion)
+                self._cache[key] = outcome
+            self.on_attempt(step=i, candidate=cand, outcome=outcome, partial=partial, cached=cached)
+            if outcome.ok:  # line 12
+                outcomes[i], worlds[i + 1] = outcome, outcome.world
+                chain.append(gen.index)
+                i += 1
+                if i < n:
+                    gens[i] = self.make_generator(i, plan[i], worlds[i])
+            elif partial and outcome.failure is not None:  # lines 13-14
+                prefix_out = {k: v for k, v in outcomes.items() if k < i}
+                yield PartialRefinement(prefix_out, worlds[i], i, outcome.failure, cand)
+            # line 15: the next iteration draws the next candidate of step i
+        if i >= n:  # lines 16-17
+            return Refinement(outcomes)
+        return None

@@ -1,0 +1,43 @@
+"""The result of a run: the same data for the Python API and for ``--json``."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from . import logic
+
+
+@dataclass
+class Result:
+    status: str  # "solved" | "unsolvable" | "timeout"
+    reason: str = ""
+    plan: list = field(default_factory=list)  # GroundSteps
+    learned_facts: list = field(default_factory=list)  # atoms, in the order learned
+    replans: int = 0
+    task_planner_calls: int = 0
+    times: dict = field(default_factory=dict)
+    counts: dict = field(default_factory=dict)
+    seed: int = 0
+    config: dict = field(default_factory=dict)
+    refinement: Any = None  # domain trajectory (per step), when solved
+    trace: Any = None
+    problem: Any = None
+    model: Any = None
+
+    @property
+    def solved(self) -> bool:
+        return self.status == "solved"
+
+    def to_json(self) -> dict:
+        return {
+            "status": self.status,
+            "reason": self.reason,
+            "plan": [s.to_json() for s in self.plan],
+            "learned_facts": [logic.atom_str(a) for a in self.learned_facts],
+            "replans": self.replans,
+            "task_planner_calls": self.task_planner_calls,
+            "times": {k: round(v, 4) for k, v in self.times.items()},
+            "counts": self.counts,
+            "seed": self.seed,
+            "config": self.config,
+        }
