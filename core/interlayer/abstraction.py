@@ -80,6 +80,11 @@ class TaskModel:
     def goal_holds(self, state: frozenset) -> bool:
         return logic.holds(self.goal, state, {}, self.objects_of)
 
+    def task_args(self, step: GroundStep) -> tuple:
+        """The arguments the task planner sees (dropped parameters removed)."""
+        binding = self.binding(step)
+        return tuple(binding[v] for v, _ in self.actions[step.action].parameters)
+
     def reintroduce(self, action: str, task_args: tuple) -> GroundStep:
         """Restore dropped parameters (e.g. ``traj_p1_p2``) of a task-planner step."""
         act = self.actions[action]

@@ -168,6 +168,22 @@ def cmd_validate(args) -> int:
     return EXIT_OK if not violations else EXIT_NOT_SOLVED
 
 
+def cmd_viz(args) -> int:
+    from .viz import write_plan_html
+
+    write_plan_html(args.out_dir, args.output, args.visualizer)
+    log(f"Wrote {args.output}")
+    return EXIT_OK
+
+
+def cmd_explain(args) -> int:
+    from .viz import write_explain_html
+
+    write_explain_html(args.out_dir, args.output, args.visualizer)
+    log(f"Wrote {args.output}")
+    return EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="interlayer", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -196,6 +212,14 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("out_dir", metavar="OUT_DIR")
     v.add_argument("--json", action="store_true")
     v.set_defaults(func=cmd_validate)
+
+    for name, func, default, what in (("viz", cmd_viz, "plan.html", "a self-contained 3D animation of the refined plan"),
+                                      ("explain", cmd_explain, "explain.html", "a page explaining every task plan, failure and replan")):
+        page = sub.add_parser(name, help=f"write {what}")
+        page.add_argument("out_dir", metavar="OUT_DIR")
+        page.add_argument("-o", "--output", default=default, help=f"the HTML file to write (default {default})")
+        page.add_argument("--visualizer", default="meshcat", help="the registered visualizer to use")
+        page.set_defaults(func=func, json=False)
     return parser
 
 

@@ -126,6 +126,10 @@ class InterfaceLayer:
             done = _drain(refiner.try_refine(self.plan, step, world, prefix, partial=False))  # line 5
             if done is not None:
                 self.trace.emit("refined", steps=len(self.plan))
+                with self.stats.timer("validation"):
+                    why = self.task_planner.validate_plan(self.model, init, self.plan)
+                if why:
+                    raise RuntimeError(f"the final task plan failed validation: {why}")
                 return "solved", "", [done.outcomes[i] for i in range(len(self.plan))]  # line 6
             if self._out_of_time():
                 break

@@ -41,6 +41,10 @@ class TaskPlanner:
     def _plan(self, model: TaskModel, state: frozenset, timeout: float):  # pragma: no cover
         raise NotImplementedError
 
+    def validate_plan(self, model: TaskModel, state: frozenset, plan) -> str:
+        """A second opinion on a final plan ('' if valid); adapters may use their library's validator."""
+        return check_plan(model, state, plan)
+
 
 def check_plan(model: TaskModel, state: frozenset, plan) -> str:
     """Replay a plan with the core's own semantics; '' if it reaches the goal, else why not."""

@@ -1,7 +1,7 @@
 """Registers the Gripper-2D domain and its pose generators."""
 from interlayer import hookimpl
 
-PARAMS = {"obstructions": 1}
+PARAMS = {"obstructions": 1, "s_occupied": False}
 
 
 def make_problem(params, seed):
@@ -14,8 +14,10 @@ def make_problem(params, seed):
     k = params["obstructions"]
     if not isinstance(k, int) or isinstance(k, bool) or not 0 <= k <= 5:
         raise UserError(f"problem.obstructions must be an integer from 0 to 5 (blocks that fit the corridor), got {k!r}.")
-    layout = make_layout(k)
-    blocks = sorted(layout.blocks, key=lambda b: int(b[1:]))
+    if not isinstance(params["s_occupied"], bool):
+        raise UserError(f"problem.s_occupied must be true or false, got {params['s_occupied']!r}.")
+    layout = make_layout(k, params["s_occupied"])
+    blocks = sorted(layout.blocks)
     objects = {b: "block" for b in blocks}
     objects.update({"S": "region", "free": "region", "init_pose": "pose"})
     init = frozenset({("Empty",), ("GripperAt", "init_pose")})

@@ -80,8 +80,9 @@ class Layout:
                 "corridor": self.corridor, "S": {"centre": S_CENTRE, "size": S_SIZE}}
 
 
-def make_layout(obstructions: int) -> Layout:
-    """b1 at the closed end of a dead-end corridor, b2..b(k+1) in front of it towards the mouth."""
+def make_layout(obstructions: int, s_occupied: bool = False) -> Layout:
+    """b1 at the closed end of a dead-end corridor, b2..b(k+1) in front of it towards the mouth;
+    with ``s_occupied`` a block ``c1`` already stands in S, so placing b1 there fails too."""
     k = obstructions
     length = SLOT * (k + 1) + 0.05
     x_end, y = 0.9, 0.45
@@ -93,15 +94,17 @@ def make_layout(obstructions: int) -> Layout:
         "wall_end": (x_end + WALL / 2, y, WALL, CORRIDOR_WIDTH + 2 * WALL),
     }
     blocks = {f"b{i + 1}": (x_end - SLOT / 2 - 0.02 - i * SLOT, y, 0.0) for i in range(k + 1)}
+    if s_occupied:
+        blocks["c1"] = (S_CENTRE[0], S_CENTRE[1], 0.0)
     return Layout(k, walls, blocks, (-0.5, 0.1, 0.0), (x_mouth, x_end, y - half, y + half))
 
 
 class Gripper2DGeometry:
     """The refinement runtime of Gripper-2D (interlayer.refine.Geometry)."""
 
-    def __init__(self, layout: Layout):
+    def __init__(self, layout: Layout, margin: float = 0.004):
         self.layout = layout
-        self.scene = CollisionScene()
+        self.scene = CollisionScene(margin)  # planning keeps 4 mm away; the validator uses no margin
         for name, (cx, cy, sx, sy) in layout.walls.items():
             self.scene.add(name, [Shape("box", (sx, sy, HEIGHT), np.eye(4))], planar(cx, cy, 0), movable=False)
         for name, pose in layout.blocks.items():
@@ -198,7 +201,7 @@ class Gripper2DGeometry:
     def validate(self, plan, trajectory: dict) -> list[str]:
         from .validate import validate_trajectory
 
-        return validate_trajectory(self, plan, trajectory)
+        return validate_trajectory(Gripper2DGeometry(self.layout, margin=0.0), plan, trajectory)
 
 
 def _failure(plan, phase) -> StepOutcome:

@@ -1,0 +1,100 @@
+"""Arm IK: round trips through FK, limits, unreachable targets, collision-aware solutions."""
+
+import math
+import time
+
+import numpy as np
+import pytest
+
+pin = pytest.importorskip("pinocchio")
+
+from interlayer_pinocchio import PR2, CollisionWorld, solve_ik  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return PR2()
+
+
+def pose_error(a, b):
+    """(position error m, rotation error rad) between two 4x4 poses."""
+    rel = pin.SE3(a).actInv(pin.SE3(b))
+    return float(np.linalg.norm(a[:3, 3] - b[:3, 3])), float(np.linalg.norm(pin.log3(rel.rotation)))
+
+
+@pytest.mark.parametrize("arm", ["left", "right"])
+def test_ik_round_trip(robot, arm):
+    rng = np.random.default_rng(11 if arm == "left" else 12)
+    group = robot.group(f"{arm}_arm")
+    failures, times = 0, []
+    for _ in range(150):
+        q_target = robot.random_q(rng, groups=("base", f"{arm}_arm"))
+        target = robot.tool_pose(q_target, arm)
+        q_start = robot.random_q(rng, q=q_target, groups=(f"{arm}_arm",))  # same base, other arm conf
+        t = time.perf_counter()
+        solution = solve_ik(robot, arm, target, q_start, rng)
+        times.append(time.perf_counter() - t)
+        if solution is None:
+            failures += 1
+            continue
+        assert solution.shape == (7,)
+        assert group.within_bounds(solution)
+        assert all(-math.pi < solution[i] <= math.pi for i in group.circular_indices)
+        pos, rot = pose_error(robot.tool_pose(group.set(q_start, solution), arm), target)
+        assert pos <= 1e-3 and rot <= math.radians(1.0)
+    print(f"\n{arm}: {failures}/150 failures, median {np.median(times) * 1e3:.2f} ms, "
+          f"mean {np.mean(times) * 1e3:.2f} ms, max {np.max(times) * 1e3:.1f} ms")
+    assert failures <= 3
+    assert np.median(times) < 5e-3
+
+
+def test_ik_prefers_current_configuration(robot):
+    """A target already reached by q_start returns (about) the same arm configuration."""
+    rng = np.random.default_rng(3)
+    q = robot.random_q(rng)
+    target = robot.tool_pose(q, "left")
+    solution = solve_ik(robot, "left", target, q, rng)
+    np.testing.assert_allclose(solution, robot.get(q, "left_arm"), atol=1e-9)
+
+
+def test_ik_tracks_base_and_torso(robot):
+    tall = PR2(torso_height=0.3)
+    rng = np.random.default_rng(4)
+    q = tall.random_q(rng)
+    target = tall.tool_pose(q, "right")
+    q_start = tall.set(q, "right_arm", tall.get(tall.default_q(), "right_arm"))
+    solution = solve_ik(tall, "right", target, q_start, rng)
+    assert solution is not None
+    pos, rot = pose_error(tall.tool_pose(tall.set(q_start, "right_arm", solution), "right"), target)
+    assert pos <= 1e-3 and rot <= math.radians(1.0)
+
+
+def test_unreachable_target_fails_fast(robot):
+    q = robot.default_q()
+    far = np.eye(4)
+    far[:3, 3] = (3.0, 0.0, 1.0)
+    t = time.perf_counter()
+    assert solve_ik(robot, "left", far, q, np.random.default_rng(0)) is None
+    assert time.perf_counter() - t < 5e-3
+
+
+def test_ik_with_world_rejects_collisions_unless_ignored(robot):
+    """Grasp pose around a floating can: closed fingers collide with it unless it is ignored."""
+    world = CollisionWorld(robot)
+    can = np.eye(4)
+    can[:3, 3] = (0.65, 0.2, 0.9)
+    world.add_cylinder("can", 0.03, 0.15, can, movable=True)
+    q = robot.default_q()
+    target = can.copy()  # tool x forward (approach), z up along the can axis
+    rng = np.random.default_rng(5)
+    assert solve_ik(robot, "left", target, q, rng, world=world, attempts=10) is None
+    solution = solve_ik(robot, "left", target, q, rng, world=world, ignore={"can"})
+    assert solution is not None
+    q_grasp = robot.set(q, "left_arm", solution)
+    assert not world.in_collision(q_grasp, ignore={"can"})
+    assert world.in_collision(q_grasp)
+    # open fingers around a 6 cm can: no contact, so no ignore needed
+    q_open = robot.open_gripper(q, "left")
+    solution = solve_ik(robot, "left", target, q_open, rng, world=world)
+    assert solution is not None
+    assert not world.in_collision(robot.set(q_open, "left_arm", solution))
