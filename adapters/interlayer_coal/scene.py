@@ -64,12 +64,16 @@ class Body:
 
 
 class CollisionScene:
-    def __init__(self):
+    """Named bodies; ``margin`` pads every collision test (plan with a margin, validate without)."""
+
+    def __init__(self, margin: float = 0.0):
         self.bodies: dict[str, Body] = {}
         self.poses: dict[str, np.ndarray] = {}
         self.movable: dict[str, bool] = {}
-        self._centres: dict[str, list] = {}
         self._request = coal.CollisionRequest()
+        self._request.security_margin = margin
+        self.margin = margin
+        self._index = None  # flat arrays of every shape's centre and radius, rebuilt lazily
 
     def add(self, name: str, shapes: list[Shape], pose: np.ndarray, movable: bool) -> None:
         self.bodies[name] = Body(shapes)
@@ -78,34 +82,43 @@ class CollisionScene:
 
     def set_pose(self, name: str, pose: np.ndarray) -> None:
         self.poses[name] = np.asarray(pose, float)
-        self._centres[name] = self.bodies[name].place(self.poses[name])
+        self.bodies[name].place(self.poses[name])
+        self._index = None
 
     def names(self, movable: bool | None = None) -> list[str]:
         return [n for n, m in self.movable.items() if movable is None or m == movable]
 
+    def _build_index(self):
+        owners, objects, centres, radii = [], [], [], []
+        for name, body in self.bodies.items():
+            for shape, obj, r in zip(body.shapes, body.objects, body.radii):
+                owners.append(name)
+                objects.append(obj)
+                centres.append((self.poses[name] @ shape.local)[:3, 3])
+                radii.append(r)
+        self._index = (owners, objects, np.array(centres).reshape(-1, 3), np.array(radii))
+
     def hits(self, body: Body, pose: np.ndarray, skip=(), movables: bool = True, first: bool = False) -> set:
         """Names of scene objects that ``body`` at ``pose`` collides with (stop at one if ``first``)."""
-        centres = body.place(pose)
+        if self._index is None:
+            self._build_index()
+        owners, objects, centres, radii = self._index
+        mine = np.array(body.place(pose))
+        reach = (np.array(body.radii)[:, None] + radii[None, :] + self.margin) ** 2
+        d = mine[:, None, :] - centres[None, :, :]
+        close = np.nonzero(np.einsum("ijk,ijk->ij", d, d) <= reach)
         found = set()
-        for name, other in self.bodies.items():
-            if name in skip or (not movables and self.movable[name]):
+        for i, j in zip(*close):
+            name = owners[j]
+            if name in found or name in skip or (not movables and self.movable[name]):
                 continue
-            if self._collide(body, centres, other, self._centres[name]):
+            if coal.collide(body.objects[i], objects[j], self._request, coal.CollisionResult()):
                 found.add(name)
                 if first:
                     break
         return found
 
-    def _collide(self, a: Body, ca, b: Body, cb) -> bool:
-        for oa, ra, pa in zip(a.objects, a.radii, ca):
-            for ob, rb, pb in zip(b.objects, b.radii, cb):
-                d = pa - pb
-                if d @ d > (ra + rb) ** 2:
-                    continue
-                result = coal.CollisionResult()
-                if coal.collide(oa, ob, self._request, result):
-                    return True
-        return False
-
     def bodies_collide(self, a: Body, pose_a, b: Body, pose_b) -> bool:
-        return self._collide(a, a.place(pose_a), b, b.place(pose_b))
+        a.place(pose_a)
+        b.place(pose_b)
+        return any(coal.collide(oa, ob, self._request, coal.CollisionResult()) for oa in a.objects for ob in b.objects)

@@ -33,7 +33,7 @@ class UPTaskPlanner(TaskPlanner):
     engine: str = "fast-downward"
     params: dict = field(default_factory=dict)
     fallbacks: tuple = ()  # further params to try when the engine fails without proof (FF's EHC -> GBFS)
-    validate: bool = True
+    validate: str = "final"  # UP's validator on "every" plan, the "final" one, or "off"
     _builders: dict = field(default_factory=dict)
 
     def _builder(self, model):
@@ -61,16 +61,34 @@ class UPTaskPlanner(TaskPlanner):
             status = "unsolvable"
         if status != "solved":
             return status, [], reason, None
-        if self.validate:
-            from unified_planning.shortcuts import PlanValidator
-
-            with PlanValidator(problem_kind=problem.kind) as validator:
-                check = validator.validate(problem, plan)
-            if not check.status.name == "VALID":
-                return "error", [], f"UP's validator rejected the plan: {check.reason}", None
+        if self.validate == "every":
+            why = _up_validate(problem, plan)
+            if why:
+                return "error", [], why, None
         steps = [(ai.action.name, [p.object().name for p in ai.actual_parameters]) for ai in plan.actions]
         cost = sum(model.actions[a].cost for a, _ in steps)
         return "solved", steps, "", cost
+
+
+    def validate_plan(self, model, state, plan) -> str:
+        """Check a plan with Unified-Planning's own SequentialPlanValidator."""
+        if self.validate == "off":
+            return super().validate_plan(model, state, plan)
+        from unified_planning.plans import ActionInstance, SequentialPlan
+
+        builder = self._builder(model)
+        problem = builder.problem_for(state)
+        up_plan = SequentialPlan([ActionInstance(problem.action(s.action), [problem.object(o) for o in model.task_args(s)])
+                                  for s in plan])
+        return _up_validate(problem, up_plan)
+
+
+def _up_validate(problem, plan) -> str:
+    from unified_planning.shortcuts import PlanValidator
+
+    with PlanValidator(problem_kind=problem.kind) as validator:
+        check = validator.validate(problem, plan)
+    return "" if check.status.name == "VALID" else f"UP's validator rejected the plan: {check.reason}"
 
 
 def _compile_for(engine, problem):

@@ -18,7 +18,11 @@ def _factory(name, default_params):
         from .planner import FF_SEARCHES, UPTaskPlanner
 
         opts = dict(options)
-        validate = opts.pop("validate", True)
+        validate = opts.pop("validate", "final")
+        if validate not in ("every", "final", "off"):
+            from interlayer.errors import UserError
+
+            raise UserError(f"task_planner.{name}.validate must be 'every', 'final' or 'off', got {validate!r}.")
         fallbacks = ()
         if name == "ff":
             engine, params = "fast-downward", {"fast_downward_search_config": FF_SEARCHES[0]}
