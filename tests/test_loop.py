@@ -1,0 +1,161 @@
+"""Alg. 1 and Alg. 2, branch by branch, with the real Fast Downward task planner.
+
+The geometry here is a scripted test double (it says which refinements fail and why), so each
+branch of the loop can be driven on purpose; the Gripper-2D tests exercise the real geometry.
+"""
+import pytest
+
+from interlayer.abstraction import abstract
+from interlayer.domain import ActionSpec, DomainSpec, Problem, Skolem
+from interlayer.loop import InterfaceLayer, LoopSettings
+from interlayer.refine import Candidate, Failure, Infeasible, StepOutcome
+
+SPEC = DomainSpec(
+    name="scripted",
+    types={"item": None},
+    continuous_types=("pose",),
+    predicates={"Done": ("item",), "Takeable": ("item",), "IsGP": ("pose", "item"),
+                "Obstructs": ("item", "pose", "item")},
+    skolems=(Skolem("gp", ("item",), "pose", "IsGP"),),
+    geometric=("Obstructs",),
+    actions=(ActionSpec(
+        "take", (("?x", "item"), ("?p", "pose")),
+        "(and (Takeable ?x) (not (Done ?x)) (IsGP ?p ?x) (forall (?o - item) (not (Obstructs ?o ?p ?x))))",
+        "(and (Done ?x) (forall (?o - item ?q - pose) (not (Obstructs ?x ?q ?o))))",
+        learn={"obstruction": ("(Obstructs ?blocker ?p ?x)",)},
+        pose_generator="scripted",
+    ),),
+)
+
+
+class ScriptedGeometry:
+    """World = the set of items taken. ``script(item, candidate_label, world, calls)`` -> Failure or None."""
+
+    def __init__(self, script):
+        self.script, self.calls = script, 0
+
+    def initial_world(self):
+        return frozenset()
+
+    def snapshot(self, world):
+        return sorted(world)
+
+    def refine_step(self, step, world, candidate, motion):
+        self.calls += 1
+        failure = self.script(step.args[0], candidate.label, world, self.calls)
+        if failure:
+            return StepOutcome(False, failure=failure)
+        return StepOutcome(True, world | {step.args[0]}, [{"took": step.args[0], "with": candidate.label}])
+
+
+def generator(labels=("c0", "c1")):
+    def gen(problem, step, world, rng):
+        for label in labels:
+            yield Candidate((label,), {}, f"{label}-{rng.integers(1000)}")
+    return gen
+
+
+def run(script, goal="(Done a)", items=("a", "b", "z"), takeable=("a", "b"), gen=None, host=None, **settings):
+    problem = Problem(SPEC, {i: "item" for i in items}, frozenset(("Takeable", t) for t in takeable), goal,
+                      ScriptedGeometry(script), {})
+    model = abstract(problem)
+    task = host["task_planners"].get("fast-downward").factory({})
+    translators = [("templates", host["failure_translators"].get("templates").factory)]
+    settings = LoopSettings(**{"time_limit": 30.0, **settings})
+    layer = InterfaceLayer(model, task, None, {"take": gen or generator()}, translators, settings)
+    return layer.solve(), problem.geometry
+
+
+def events(result, kind):
+    return [e for e in result.trace.events if e["type"] == kind]
+
+
+def test_error_free_refinement_needs_no_replanning(host):
+    result, _ = run(lambda item, label, world, n: None, host=host)
+    assert result.status == "solved" and result.task_planner_calls == 1 and result.replans == 0
+    assert [str(s) for s in result.plan] == ["take(a, gp_a)"]
+
+
+def test_failure_is_learned_and_plan_spliced(host):
+    def script(item, label, world, n):  # b stands in the way of a until b is taken
+        return Failure("obstruction", ("b",)) if item == "a" and "b" not in world else None
+
+    result, _ = run(script, host=host)
+    assert result.status == "solved"
+    assert [str(s) for s in result.plan] == ["take(b, gp_b)", "take(a, gp_a)"]
+    assert ("Obstructs", "b", "gp_a", "a") in result.learned_facts
+    replan = events(result, "replan")[0]
+    assert replan["fail_step"] == 0 and replan["prefix"] == []
+
+
+def test_spliced_plan_is_prefix_plus_new_plan(host):
+    """HLPlan[0:failStep] + newPlan (Alg. 1, line 12); Gripper-2D tests show a non-empty prefix."""
+    def script(item, label, world, n):
+        return Failure("obstruction", ("y",)) if item == "b" and "y" not in world else None
+
+    result, _ = run(script, goal="(and (Done a) (Done b))", items=("a", "b", "y"), takeable=("a", "b", "y"), host=host)
+    assert result.status == "solved"
+    replans = events(result, "replan")
+    assert replans, "expected a replan"
+    r = replans[0]
+    assert r["plan"][: r["fail_step"]] == r["prefix"] and r["plan"][r["fail_step"]:] == r["new_plan"]
+    names = [s.args[0] for s in result.plan]
+    assert names.index("y") < names.index("b")
+
+
+def test_dead_end_update_tries_next_partial_refinement(host):
+    """Fig. 4 scenario 2c: the first failure says z (untakeable) blocks a: no plan; the next says b."""
+    def script(item, label, world, n):
+        if item == "a" and label.startswith("c0"):
+            return Failure("obstruction", ("z",))
+        if item == "a" and "b" not in world:
+            return Failure("obstruction", ("b",))
+        return None
+
+    result, _ = run(script, host=host)
+    assert result.status == "solved"
+    dead = events(result, "dead_end")
+    assert dead and dead[0]["facts"] == ["(Obstructs z gp_a a)"]
+    assert [str(s) for s in result.plan] == ["take(b, gp_b)", "take(a, gp_a)"]
+
+
+def test_max_traj_count_resets_learned_facts_and_reseeds(host):
+    def script(item, label, world, n):  # fails (into a dead end) for the first 4 refinements only
+        return Failure("obstruction", ("z",)) if n <= 4 else None
+
+    result, _ = run(script, host=host, max_traj_count=1)
+    assert result.status == "solved"
+    resets = events(result, "reset")
+    assert resets and resets[0]["reason"] == "MaxTrajCount reached"
+    # after the reset the same plan is refined afresh, with generators reseeded (new samples)
+    attempts = events(result, "attempt")
+    labels_by_epoch = {}
+    epoch = 0
+    for e in result.trace.events:
+        if e["type"] == "reset":
+            epoch = e["epoch"]
+        if e["type"] == "attempt":
+            labels_by_epoch.setdefault(epoch, set()).add(e["candidate"])
+    assert labels_by_epoch[0].isdisjoint(labels_by_epoch[1])
+    assert ("Obstructs", "z", "gp_a", "a") in result.learned_facts  # reported though the reset cleared it
+    assert len(attempts) >= 5
+
+
+def test_time_limit_is_honoured(host):
+    result, _ = run(lambda item, label, world, n: Failure("unreachable"), host=host, time_limit=1.0)
+    assert result.status == "timeout" and "time limit" in result.reason
+    assert result.times["total"] < 5
+
+
+def test_unsolvable_task_level_problem(host):
+    result, _ = run(lambda *a: None, goal="(Done z)", host=host)
+    assert result.status == "unsolvable" and "no plan" in result.reason
+
+
+def test_infeasible_reference_ends_unsolvable(host):
+    def gen(problem, step, world, rng):
+        raise Infeasible("a is too wide for the gripper")
+        yield
+
+    result, _ = run(lambda *a: None, gen=gen, host=host)
+    assert result.status == "unsolvable" and result.reason == "a is too wide for the gripper"
