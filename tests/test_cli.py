@@ -15,7 +15,7 @@ def cli(*args, cwd=ROOT):
 
 
 def test_plan_json_is_alone_on_stdout_and_matches_the_api(tmp_path):
-    code, out, err = cli("plan", "examples/gripper2d.toml", "--json", "--out", str(tmp_path / "run"))
+    code, out, err = cli("plan", "examples/gripper2d.toml", "--json", "--out", str(tmp_path / "run"), "--dump-pddl")
     assert code == 0, err
     data = json.loads(out)  # stdout holds exactly one JSON object
     for key in ("status", "reason", "plan", "learned_facts", "replans", "task_planner_calls", "times", "seed", "config"):
@@ -26,6 +26,7 @@ def test_plan_json_is_alone_on_stdout_and_matches_the_api(tmp_path):
     run = tmp_path / "run"
     for name in ("result.json", "config.toml", "problem.json", "trace.json", "trajectory.json"):
         assert (run / name).exists(), name
+    assert (run / "pddl" / "call-002-problem.pddl").read_text().count("(obstructs b2 gp_b1 b1)") == 1
     trace = json.loads((run / "trace.json").read_text())["events"]
     assert {"task_plan", "attempt", "failure", "replan", "refined"} <= {e["type"] for e in trace}
     code, out, err = cli("validate", str(run))

@@ -109,7 +109,7 @@ def _new_scene(title):
 
 def _camera(scene):
     # a slightly tilted top view: 2D-ish domains read well, 3D ones still look 3D
-    return scene.auto_camera(direction=(0.15, -0.75, 1.0), margin=0.82)
+    return scene.auto_camera(direction=(0.0, -0.6, 1.0), margin=0.78)
 
 
 def solution_scene(run_or_problem, trajectory, title="plan"):
@@ -341,6 +341,7 @@ table.attempts td, table.attempts th { border-bottom: 1px solid #eceff3; padding
 td.okc { color: #2e9d4a; } td.badc { color: #c9302c; }
 .key i { display: inline-block; width: 10px; height: 10px; border-radius: 2px; margin: 0 4px 0 8px; vertical-align: -1px; }
 .muted { color: #6b7580; }
+.failure-body .dg { display: none; }
 """
 
 _TIME_COLORS = {"task_planning": "#3f6fd8", "motion_planning": "#e07b24", "pose_generation": "#2e9d4a",
@@ -351,31 +352,37 @@ _PALETTE = ["#17becf", "#bcbd22", "#e377c2", "#8c564b", "#9467bd"]
 
 
 def _plan_list(steps, start=0, marks=None, removed=()):
+    """Numbered plan; ``marks`` {index: "kept"|"added"}; ``removed`` [(position, step)]: dropped
+    steps of the previous plan, shown struck through before the step at ``position``."""
     marks = marks or {}
+    gone = {}
+    for pos, s in removed:
+        gone.setdefault(pos, []).append(s)
     items = []
-    for i, s in enumerate(steps):
+    for i in range(len(steps) + 1):
+        for s in gone.get(i, []):
+            items.append(f'<li class="removed">{escape(step_str(s))}<span class="tag removed">dropped</span></li>')
+        if i == len(steps):
+            break
         m = marks.get(i)
         tag = f'<span class="tag {m}">{m}</span>' if m else ""
-        items.append(f'<li value="{start + i}" class="{m or ""}">{escape(step_str(s))}{tag}</li>')
-    for s in removed:
-        items.append(f'<li class="removed">{escape(step_str(s))}<span class="tag removed">dropped</span></li>')
+        items.append(f'<li value="{start + i}" class="{m or ""}">{escape(step_str(steps[i]))}{tag}</li>')
     return f'<ol class="plan">{"".join(items)}</ol>'
 
 
 def _diff_marks(old, new, keep):
-    """marks for ``new`` vs ``old``: kept prefix (< keep), added (not matched), and dropped old steps."""
+    """Marks for ``new`` vs ``old``: the kept prefix (< keep), added steps, and the old
+    steps dropped (with the position in ``new`` they would have been at)."""
     a = [step_str(s) for s in old]
     b = [step_str(s) for s in new]
     marks = {i: "kept" for i in range(min(keep, len(b)))}
+    removed = []
     sm = difflib.SequenceMatcher(a=a[keep:], b=b[keep:], autojunk=False)
-    matched_b, matched_a = set(), set()
-    for blk in sm.get_matching_blocks():
-        matched_b.update(range(keep + blk.b, keep + blk.b + blk.size))
-        matched_a.update(range(keep + blk.a, keep + blk.a + blk.size))
-    for i in range(keep, len(b)):
-        if i not in matched_b:
-            marks[i] = "added"
-    removed = [old[i] for i in range(keep, len(a)) if i not in matched_a]
+    for op, i1, i2, j1, j2 in sm.get_opcodes():
+        if op in ("replace", "delete"):
+            removed += [(keep + j1, old[keep + k]) for k in range(i1, i2)]
+        if op in ("replace", "insert"):
+            marks.update({keep + j: "added" for j in range(j1, j2)})
     return marks, removed
 
 
@@ -503,7 +510,8 @@ class _Explainer:
                     else:
                         marks, removed = _diff_marks(plan, new_full, frm)
                         added = sum(1 for m in marks.values() if m == "added")
-                        note = (f" <span class=muted>- keeps the first {frm} step(s), {added} new</span>")
+                        keep = f"keeps the first {frm} step(s)" if frm else "a new plan from the start"
+                        note = f" <span class=muted>- {keep}; {added} step(s) added, {len(removed)} dropped</span>"
                     html.append(f'<div class="ev task">{t}<h3>Task plan #{e.get("call")} '
                                 f'<span class="muted">(planning from step {frm}, {e.get("time", 0):.2f} s)</span>{note}</h3>'
                                 + _plan_list(new_full, 0, marks, removed) + "</div>")

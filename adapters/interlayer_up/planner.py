@@ -1,6 +1,7 @@
 """A TaskPlanner backed by any Unified-Planning OneshotPlanner engine."""
 from __future__ import annotations
 
+import logging
 import multiprocessing
 import time
 from dataclasses import dataclass, field
@@ -14,6 +15,8 @@ from interlayer.planning import TaskPlanner
 # splits the search string on whitespace.
 FF_SEARCHES = ("let(hff,ff(),ehc(hff,preferred=[hff],preferred_usage=PRUNE_BY_PREFERRED))",
                "let(hff,ff(),lazy_greedy([hff],preferred=[hff]))")
+
+log = logging.getLogger("interlayer")
 
 # Engines that ignore UP's timeout: run them in a child process we can stop.
 UNBOUNDED_ENGINES = ("pyperplan", "pyperplan-opt")
@@ -48,6 +51,8 @@ class UPTaskPlanner(TaskPlanner):
         _quiet_environment()
         builder = self._builder(model)
         problem = builder.problem_for(state)
+        if self.pddl_dir is not None:
+            _dump_pddl(problem, self.pddl_dir, self.calls)
         deadline = time.perf_counter() + timeout
         for params in (self.params, *self.fallbacks):
             left = deadline - time.perf_counter()
@@ -83,6 +88,19 @@ class UPTaskPlanner(TaskPlanner):
         return _up_validate(problem, up_plan)
 
 
+def _dump_pddl(problem, folder, call: int) -> None:
+    """Exactly what the task planner saw, so it can be rerun alone (``fast-downward domain problem``)."""
+    from pathlib import Path
+
+    from unified_planning.io import PDDLWriter
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    writer = PDDLWriter(problem)
+    writer.write_domain(str(folder / f"call-{call:03d}-domain.pddl"))
+    writer.write_problem(str(folder / f"call-{call:03d}-problem.pddl"))
+
+
 def _up_validate(problem, plan) -> str:
     from unified_planning.shortcuts import PlanValidator
 
@@ -108,6 +126,10 @@ def _compile_for(engine, problem):
                 res = compiler.compile(problem, kind)
             chain.append(res)
             problem = res.problem
+    if not engine.supports(problem.kind) and problem.quality_metrics:
+        log.warning("the task planner '%s' ignores action costs: its plans may not be cheapest", engine.name)
+        problem = problem.clone()
+        problem.clear_quality_metrics()
     return problem, chain
 
 

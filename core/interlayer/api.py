@@ -82,14 +82,16 @@ def generators_for(host: PluginHost, model: TaskModel, config: dict) -> dict:
     return out
 
 
-def solve(source, overrides=None, host: PluginHost | None = None, listeners=()) -> Result:
-    """Solve a problem: ``source`` is a config path, a problem file, an output folder or a dict."""
+def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), pddl_dir=None) -> Result:
+    """Solve a problem: ``source`` is a config path, a problem file, an output folder or a dict.
+    ``pddl_dir``: write every task-planner call's problem there as PDDL."""
     config = resolve_config(source, overrides)
     host = host or PluginHost()
     problem = build_problem(host, config)
     model = abstract(problem)
     stats = Stats()
     task, motion = make_planners(host, config, stats)
+    task.pddl_dir = pddl_dir
     translators = [(n, host["failure_translators"].get(n).factory) for n in config["planner"]["translators"]]
     p = config["planner"]
     settings = LoopSettings(time_limit=float(p["time_limit"]), max_traj_count=p["max_traj_count"],

@@ -52,7 +52,10 @@ def cmd_plan(args) -> int:
     from . import api
 
     listeners = [] if args.quiet else [progress_printer(args.verbose)]
-    result = api.solve(args.source, overrides=args.set, listeners=listeners)
+    if args.dump_pddl and not args.out:
+        raise UserError("--dump-pddl writes into OUT_DIR/pddl/: give --out DIR as well.")
+    pddl_dir = f"{args.out}/pddl" if args.dump_pddl else None
+    result = api.solve(args.source, overrides=args.set, listeners=listeners, pddl_dir=pddl_dir)
     if args.out:
         api.write_outputs(result, args.out)
     if args.viz:
@@ -196,6 +199,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("source", metavar="CONFIG_OR_PROBLEM")
     p.add_argument("--out", metavar="DIR", help="write result.json, trace.json, trajectory.json, ... to DIR")
     p.add_argument("--viz", action="store_true", help="open a live 3D viewer of the solution")
+    p.add_argument("--dump-pddl", action="store_true",
+                   help="write each task-planner call's problem to OUT_DIR/pddl/ (call-NNN-domain.pddl, call-NNN-problem.pddl)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     p.add_argument("-v", "--verbose", action="store_true", help="show every refinement attempt")
     p.set_defaults(func=cmd_plan)

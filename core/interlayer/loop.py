@@ -56,7 +56,7 @@ class InterfaceLayer:
         self.task_calls += 1
         with self.stats.timer("task_planning"):
             res = self.task_planner.plan(self.model, state, min(self.settings.task_timeout, self._time_left()))
-        self.trace.emit("task_plan", call=self.task_calls, from_step=from_step, status=res.status,
+        self.trace.emit("task_plan", call=self.task_calls, from_step=from_step, status=res.status, state_size=len(state),
                         plan=plan_json(res.plan), time=round(res.time, 4), reason=res.reason)
         if res.status == "error":
             raise RuntimeError(res.reason)

@@ -25,9 +25,12 @@ class TaskPlanner:
 
     name: str = "task-planner"
     options: dict = field(default_factory=dict)
+    pddl_dir: object = None  # where to write each call's problem as PDDL, if the planner can
+    calls: int = 0
 
     def plan(self, model: TaskModel, state: frozenset, timeout: float) -> TaskPlanResult:
         t0 = time.perf_counter()
+        self.calls += 1
         if timeout <= 0:
             return TaskPlanResult("timeout", reason="no time left for the task planner")
         status, raw, reason, cost = self._plan(model, state, timeout)

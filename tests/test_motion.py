@@ -1,0 +1,62 @@
+"""Motion planners: configuration spaces, exact OMPL solutions, and GetMPErrors (obstructions)."""
+import math
+
+import numpy as np
+import pytest
+
+from interlayer.motion import ConfigSpace, MotionQuery
+
+SE2 = ConfigSpace("se2", (-1, -1, -math.pi), (1, 1, math.pi), (False, False, True), 0.01)
+
+
+def test_angles_wrap_the_short_way():
+    a, b = np.array([0, 0, 3.1]), np.array([0, 0, -3.1])
+    assert SE2.distance(a, b) == pytest.approx(2 * math.pi - 6.2)
+    mid = SE2.interpolate(a, b, 0.5)
+    assert abs(abs(mid[2]) - math.pi) < 1e-9
+    dense = SE2.densify([a, np.array([0.5, 0, 3.1])])
+    assert len(dense) == 51 and np.allclose(dense[-1], [0.5, 0, 3.1])
+
+
+def wall_query(movable_wall: bool, start=(-0.5, 0, 0), goal=(0.5, 0, 0)):
+    """A wall x in [-0.05, 0.05], |y| < 0.5; movable or fixed. Points are the 'robot'."""
+    def in_wall(q):
+        return abs(q[0]) < 0.05 and abs(q[1]) < 0.5
+
+    return MotionQuery(
+        SE2, np.array(start, float), np.array(goal, float),
+        is_valid=lambda q: not in_wall(q),
+        is_valid_static=lambda q: movable_wall or not in_wall(q),
+        movables_at=lambda q: {"wall"} if movable_wall and in_wall(q) else set(),
+    )
+
+
+@pytest.mark.parametrize("name", ["interpolate", "ompl:RRTConnect", "ompl:PRM", "ompl:BITstar"])
+def test_planners_go_around_or_report(host, name):
+    planner = host["motion_planners"].get(name).factory({"time_limit": 0.5})
+    plan = planner.plan(wall_query(movable_wall=False))
+    if name == "interpolate":  # a straight line cannot go around: no movable object to blame
+        assert not plan.ok and plan.obstructions == () and "ignored" in plan.reason
+        return
+    assert plan.ok
+    for q in SE2.densify(plan.path):
+        assert not (abs(q[0]) < 0.05 and abs(q[1]) < 0.5)
+    assert np.allclose(plan.path[0], [-0.5, 0, 0]) and np.allclose(plan.path[-1], [0.5, 0, 0])
+
+
+@pytest.mark.parametrize("name", ["interpolate", "ompl:RRTConnect"])
+def test_blocked_by_a_movable_object_names_it(host, name):
+    """A movable wall across the whole space: only the relaxed path exists, and it runs into 'wall'."""
+    space = ConfigSpace("se2", (-1, -0.4, -math.pi), (1, 0.4, math.pi), (False, False, True), 0.01)
+    q = wall_query(movable_wall=True)
+    q.space = space
+    plan = host["motion_planners"].get(name).factory({"time_limit": 0.3}).plan(q)
+    assert not plan.ok and plan.obstructions == ("wall",)
+
+
+def test_ompl_vector_space(host):
+    space = ConfigSpace("vector", (-1, -1, -1), (1, 1, 1), (False, False, True), 0.02)
+    q = MotionQuery(space, np.zeros(3), np.array([0.9, 0.9, 3.0]), lambda q: np.linalg.norm(q[:2] - 0.4) > 0.2,
+                    lambda q: True, lambda q: set())
+    plan = host["motion_planners"].get("ompl:RRTConnect").factory({"time_limit": 1.0}).plan(q)
+    assert plan.ok and all(np.linalg.norm(p[:2] - 0.4) > 0.2 for p in space.densify(plan.path))

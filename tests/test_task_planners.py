@@ -1,0 +1,52 @@
+"""Task planners through Unified-Planning: engines by name, costs, timeouts, FF's fallback, UP validation."""
+import pytest
+
+from interlayer.abstraction import abstract
+from interlayer.domain import ActionSpec, DomainSpec, Problem
+from interlayer.planning import check_plan
+
+SPEC = DomainSpec(
+    name="costs", types={"room": None}, continuous_types=(),
+    predicates={"At": ("room",), "Link": ("room", "room")},
+    skolems=(),
+    actions=(
+        ActionSpec("walk", (("?a", "room"), ("?b", "room")), "(and (At ?a) (Link ?a ?b))", "(and (not (At ?a)) (At ?b))", cost=1),
+        ActionSpec("fly", (("?a", "room"), ("?b", "room")), "(At ?a)", "(and (not (At ?a)) (At ?b))", cost=10),
+    ),
+)
+
+
+def corridor(n=4):
+    rooms = [f"r{i}" for i in range(n)]
+    links = frozenset(("Link", a, b) for a, b in zip(rooms, rooms[1:]))
+    return abstract(Problem(SPEC, {r: "room" for r in rooms}, links | {("At", "r0")}, f"(At r{n - 1})", None, {}))
+
+
+@pytest.mark.parametrize("name", ["fast-downward", "fast-downward-opt", "pyperplan", "ff"])
+def test_engines_return_valid_plans(host, name):
+    model = corridor()
+    res = host["task_planners"].get(name).factory({}).plan(model, model.init, 30)
+    assert res.status == "solved", res.reason
+    assert check_plan(model, model.init, res.plan) == ""
+
+
+def test_action_costs_reach_the_optimal_planner(host):
+    model = corridor(4)  # walking 3 steps costs 3, flying once costs 10
+    res = host["task_planners"].get("fast-downward-opt").factory({}).plan(model, model.init, 30)
+    assert [s.action for s in res.plan] == ["walk"] * 3 and res.cost == 3
+
+
+def test_custom_search_string_and_unsolvable_state(host):
+    model = corridor()
+    planner = host["task_planners"].get("fast-downward").factory({"search": "astar(blind())"})
+    assert planner.plan(model, model.init, 30).status == "solved"
+    dead = frozenset(a for a in model.init if a[0] != "At")  # the agent is nowhere
+    assert planner.plan(model, dead, 30).status == "unsolvable"
+
+
+def test_up_validator_checks_final_plans(host):
+    model = corridor()
+    planner = host["task_planners"].get("fast-downward").factory({})
+    plan = planner.plan(model, model.init, 30).plan
+    assert planner.validate_plan(model, model.init, plan) == ""
+    assert "rejected" in planner.validate_plan(model, model.init, plan[1:])
