@@ -109,7 +109,7 @@ def _new_scene(title):
 
 def _camera(scene):
     # a slightly tilted top view: 2D-ish domains read well, 3D ones still look 3D
-    return scene.auto_camera(direction=(0.0, -0.6, 1.0), margin=0.78)
+    return scene.auto_camera(direction=(0.0, -0.5, 1.0), margin=0.95)
 
 
 def solution_scene(run_or_problem, trajectory, title="plan"):
@@ -150,8 +150,38 @@ def failure_scene(problem, event):
             _recolor(scene, names.get(a, a), ACTED_ON)
     for o in obstructing:
         _recolor(scene, names.get(o, o), OBSTRUCTING)
-    _camera(scene)
+    focus = [names.get(o, o) for o in obstructing + acted[:1]]
+    if not _focus_camera(scene, focus):
+        _camera(scene)
     return scene
+
+
+def _focus_camera(scene, names, direction=(0.0, -0.7, 1.0), pad=0.22) -> bool:
+    """Camera on the objects ``names`` (plus ``pad`` metres around them); False if none is known."""
+    import math
+
+    import numpy as np
+
+    pts = []
+    info = getattr(scene, "_info", {})
+    for name in names:
+        for k, inf in info.items():
+            if (k == name or k.startswith(name + "/")) and inf.bbox is not None:
+                T = scene._world_pose(k)
+                lo, hi = inf.bbox
+                c = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+                pts.extend(c @ T[:3, :3].T + T[:3, 3])
+    if not pts:
+        return False
+    P = np.asarray(pts)
+    lo, hi = P.min(axis=0) - pad, P.max(axis=0) + pad
+    centre = 0.5 * (lo + hi)
+    radius = 0.5 * float(np.linalg.norm(hi - lo))
+    d = np.asarray(direction, float)
+    d /= np.linalg.norm(d)
+    dist = radius / math.tan(math.radians(scene.fov) / 2)
+    scene.camera(centre + d * dist, centre)
+    return True
 
 
 def _recolor(scene, name, color):
@@ -188,12 +218,13 @@ _CAPTION_JS = """
   var items = document.querySelectorAll("#caption li");
   function tick() {
     var v = el.meshcatViewer, a = v && v.animator;
-    if (a && a.duration > 0 && starts.length) {
-      var t = a.mixer.time %% a.duration, cur = -1;
+    if (a && a.duration > 0 && a.actions && a.actions.length && starts.length) {
+      var t = 0, cur = -1;  // the clip time being shown (what meshcat's scrubber shows)
+      for (var j = 0; j < a.actions.length; j++) t = Math.max(t, a.actions[j].time);
       for (var i = 0; i < starts.length - 1; i++) if (t >= starts[i][1]) cur = starts[i][0];
       for (var k = 0; k < items.length; k++) items[k].className = (k === cur ? "now" : "");
     }
-    setTimeout(tick, 150);
+    requestAnimationFrame(tick);  // in step with the rendering
   }
   tick();
 })();
@@ -399,8 +430,8 @@ class _Explainer:
                f'<p><span class="badge {cls}">{escape(status)}</span> '
                f'{escape(r.get("reason") or "")} <span class="muted">{escape(str(self.run.dir))}</span></p>']
         out.append(self.summary())
-        out.append(self.solution())
         out.append(self.timeline_section())
+        out.append(self.solution())
         return "\n".join(out)
 
     # -- summary ---------------------------------------------------------------------------
@@ -542,9 +573,10 @@ class _Explainer:
                 kept = (f"kept the prefix of {len(prefix)} refined step(s): "
                         + ", ".join(f"<code>{escape(step_str(s))}</code>" for s in prefix)) if prefix \
                     else "no prefix kept (the failure was at the first step)"
+                keep_ref = " (their motions are reused unchanged)" if prefix else ""
                 html.append(f'<div class="ev replan">{t}<h3>Replanned from step {e.get("fail_step")}</h3>{kept}; '
-                            f'the new plan has {len(plan)} step(s) and refinement resumes at step {e.get("fail_step")} '
-                            "with the refinement of the prefix unchanged.</div>")
+                            f'the new plan has {len(plan)} step(s) and refinement resumes at step {e.get("fail_step")}'
+                            f"{keep_ref}.</div>")
             elif kind == "dead_end":
                 html.append(f'<div class="ev dead">{t}<h3>Dead end at step {e.get("step")}</h3>The state with '
                             + ", ".join(f'<span class="fact">{escape(f)}</span>' for f in e.get("facts") or [])

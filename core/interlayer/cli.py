@@ -58,10 +58,6 @@ def cmd_plan(args) -> int:
     result = api.solve(args.source, overrides=args.set, listeners=listeners, pddl_dir=pddl_dir)
     if args.out:
         api.write_outputs(result, args.out)
-    if args.viz:
-        from .viz import live_view
-
-        live_view(result)
     data = result.to_json()
     if args.json:
         print(json.dumps(data))
@@ -79,6 +75,10 @@ def cmd_plan(args) -> int:
         if args.out:
             log(f"Wrote {args.out}/ (result.json, trace.json, config.toml, problem.json"
                 f"{', trajectory.json' if result.solved else ''}).")
+    if args.viz:  # after the summary: in a terminal the live viewer waits for Ctrl-C
+        from .viz import live_view
+
+        live_view(result)
     return EXIT_OK if result.solved else EXIT_NOT_SOLVED
 
 

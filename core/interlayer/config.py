@@ -15,7 +15,7 @@ PLANNER_DEFAULTS = {
     "time_limit": 120.0,
     "task_timeout": 60.0,
     "max_traj_count": 10,
-    "max_refine_attempts": 100,
+    "max_refine_attempts": 40,
     "translators": ["templates"],
 }
 SECTIONS = ("problem", "planner", "task_planner", "motion_planner", "pose_generators", "visualizer")

@@ -64,8 +64,9 @@ def interlayer_register_failure_translators(registry):
 
 @hookspec
 def interlayer_register_visualizers(registry):
-    """Register visualizers: ``factory(options) -> object`` with ``write_html(out_dir, path)`` and
-    optionally ``live(result)``.
+    """Register visualizers: ``factory(options) -> object`` with ``plan_page(out_dir, path)`` (a 3D
+    animation of the refined plan), ``explain_page(out_dir, path)`` (the search explained) and
+    optionally ``live(result)`` (a live viewer for ``plan --viz``).
 
     :param registry: the visualizer registry.
     """

@@ -16,7 +16,7 @@ from .trace import Stats, Trace
 class LoopSettings:
     time_limit: float = 600.0
     max_traj_count: int = 10
-    max_refine_attempts: int = 100
+    max_refine_attempts: int = 40
     task_timeout: float = 60.0
     seed: int = 0
 
