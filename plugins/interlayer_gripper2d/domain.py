@@ -9,6 +9,7 @@ DOMAIN = DomainSpec(
         "Empty": (),
         "Holding": ("block",),
         "InRegion": ("block", "region"),
+        "Allowed": ("block", "region"),  # static: S is only for the goal block, free space for any
         "GripperAt": ("pose",),
         "IsGP": ("pose", "block"),
         "IsPDP": ("pose", "block", "region"),
@@ -38,7 +39,7 @@ DOMAIN = DomainSpec(
         ActionSpec(
             name="place",
             parameters=(("?b", "block"), ("?r", "region"), ("?p1", "pose"), ("?pdp", "pose"), ("?t", "traj")),
-            precondition="""(and (Holding ?b) (GripperAt ?p1) (IsPDP ?pdp ?b ?r) (IsMP ?t ?p1 ?pdp)
+            precondition="""(and (Holding ?b) (Allowed ?b ?r) (GripperAt ?p1) (IsPDP ?pdp ?b ?r) (IsMP ?t ?p1 ?pdp)
                                  (forall (?o - block) (not (PDObstructs ?o ?pdp ?b ?r))))""",
             effect="""(and (not (Holding ?b)) (Empty) (InRegion ?b ?r) (not (GripperAt ?p1)) (GripperAt ?pdp))""",
             learn={"obstruction": ("(PDObstructs ?blocker ?pdp ?b ?r)",)},

@@ -20,7 +20,11 @@ def make_problem(params, seed):
     blocks = sorted(layout.blocks)
     objects = {b: "block" for b in blocks}
     objects.update({"S": "region", "free": "region", "init_pose": "pose"})
-    init = frozenset({("Empty",), ("GripperAt", "init_pose")})
+    # Without ("Allowed", b2, "S") a planner may park b2 in S: picking b2 later deletes the learned
+    # PDObstructs(b2, ...) facts and putting it back re-creates the obstruction unseen (the paper's
+    # unmodelled side effects of put-down), so the loop could cycle.
+    allowed = {("Allowed", b, "free") for b in blocks} | {("Allowed", "b1", "S")}
+    init = frozenset({("Empty",), ("GripperAt", "init_pose")} | allowed)
     return Problem(DOMAIN, objects, init, "(InRegion b1 S)", Gripper2DGeometry(layout),
                    {"domain": "gripper2d", "params": dict(params), "seed": seed, "layout": layout.to_json()},
                    name=f"gripper2d-k{k}")
