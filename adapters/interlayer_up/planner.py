@@ -1,8 +1,10 @@
 """A TaskPlanner backed by any Unified-Planning OneshotPlanner engine."""
 from __future__ import annotations
 
+import contextlib
 import logging
 import multiprocessing
+import tempfile
 import time
 from dataclasses import dataclass, field
 
@@ -137,7 +139,10 @@ def _solve(engine_name, params, problem, timeout):
     from unified_planning.engines import PlanGenerationResultStatus as S
     from unified_planning.shortcuts import OneshotPlanner
 
-    with OneshotPlanner(name=engine_name, params=params or None) as engine:
+    # Fast Downward's driver writes output.sas into the working directory: concurrent runs in one
+    # folder read each other's tasks. Each call gets a private folder.
+    with tempfile.TemporaryDirectory(prefix="interlayer-fd-") as scratch, contextlib.chdir(scratch), \
+            OneshotPlanner(name=engine_name, params=params or None) as engine:
         compiled, chain = _compile_for(engine, problem)
         if not engine.supports(compiled.kind):
             return "error", None, f"the engine '{engine_name}' cannot handle this problem's features ({sorted(compiled.kind.features)})"
