@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import logging
 import multiprocessing
 import tempfile
@@ -135,6 +136,22 @@ def _compile_for(engine, problem):
     return problem, chain
 
 
+@functools.cache
+def _sparse_problem_class():
+    from unified_planning.model import Problem
+
+    class SparseProblem(Problem):
+        """UP's PDDL writer asks ``initial_values`` for every grounding of every fluent just to write
+        the true ones (seconds for big reference sets). All our fluents default to false, so the
+        explicit (true) values are the whole initial state."""
+
+        @property
+        def initial_values(self):
+            return dict(self.explicit_initial_values)
+
+    return SparseProblem
+
+
 def _solve(engine_name, params, problem, timeout):
     from unified_planning.engines import PlanGenerationResultStatus as S
     from unified_planning.shortcuts import OneshotPlanner
@@ -146,6 +163,8 @@ def _solve(engine_name, params, problem, timeout):
         compiled, chain = _compile_for(engine, problem)
         if not engine.supports(compiled.kind):
             return "error", None, f"the engine '{engine_name}' cannot handle this problem's features ({sorted(compiled.kind.features)})"
+        if not chain:
+            compiled.__class__ = _sparse_problem_class()  # our own clone: only the PDDL writer reads it
         res = engine.solve(compiled, timeout=timeout)
     if res.status in (S.SOLVED_SATISFICING, S.SOLVED_OPTIMALLY) and res.plan is not None:
         plan = res.plan
