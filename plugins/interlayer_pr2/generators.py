@@ -1,0 +1,315 @@
+"""Pose generators (Sec. IV-B2) for the PR2: base poses in annuli, side / top grasps, put-down spots.
+
+* ``pr2:move_base`` instantiates the base-pose reference it drives to. For ``bpfg_<o>_<arm>`` it
+  samples base poses in an annulus around o, oriented towards it, keeping those with a collision-free
+  (fixed obstacles) IK solution for some grasp. For ``bpfpd_<o>_<arm>_<loc>`` it samples a put-down
+  spot (tloc) in loc near the robot, then base poses in an annulus around it with an IK solution for
+  the put-down gripper pose derived from the held grasp; the tloc travels with the world to place.
+* ``pr2:pick`` yields grasps reachable from the current base: (pre-grasp, grasp, raise) arm vectors.
+* ``pr2:place`` yields (lowering, retreat) arm paths for the chosen tloc and a few variants.
+
+All are finite and seeded by ``rng``; they only check static geometry (IK, fixed obstacles).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from interlayer.refine import Candidate, Infeasible
+
+from .scene import REST_GAP, TABLE_TOP
+from .world import LIFT, PRE_GRASP, pose4, rz, trans, wrap
+
+LINE_STEP = 0.05  # m between IK waypoints of straight-line approaches
+GRASP_CLEARANCE = 0.001  # the gripper must open at least this much wider than the object
+DOWN = np.array([[0, 0, 1, 0], [0, 1, 0, 0], [-1, 0, 0, 0], [0, 0, 0, 1.0]])  # tool x pointing down
+
+
+def _problem_grasps(problem):
+    return problem.geometry.layout.grasps
+
+
+def grasp_poses(geometry, name, P, heading, kinds, rng, n_side=5):
+    """Tool poses grasping object ``name`` at pose P, facing roughly along ``heading`` (world yaw).
+    Only grasps whose closing width fits the gripper are returned."""
+    o = geometry.specs[name]
+    opening = geometry.robot.max_gripper_opening
+    x, y, z = P[:3, 3]
+    yaw_o = math.atan2(P[1, 0], P[0, 0])
+    h = o.height
+    out = []
+    if "side" in kinds:
+        if o.shape == "cylinder":
+            if 2 * o.size[0] + GRASP_CLEARANCE <= opening:
+                offs = [0.0] + [float(v) for v in rng.uniform(-0.5, 0.5, size=n_side - 1)]
+                out += [("side", trans(x, y, z) @ rz(heading + d)) for d in offs]
+        else:
+            for k in range(4):
+                yaw = yaw_o + k * math.pi / 2
+                across = o.size[1] if k % 2 == 0 else o.size[0]  # extent along the closing (y) axis
+                if across + GRASP_CLEARANCE <= opening and abs(wrap(yaw - heading)) < math.pi / 2 - 0.2:
+                    out.append(("side", trans(x, y, z) @ rz(yaw)))
+    if "top" in kinds:
+        depth = min(0.03, h / 2)
+        zt = z + h / 2 - depth
+        if o.shape == "cylinder":
+            if 2 * o.size[0] + GRASP_CLEARANCE <= opening:
+                out += [("top", trans(x, y, zt) @ rz(heading + d) @ DOWN) for d in (0.0, math.pi / 2)]
+        else:
+            for k in range(2):
+                across = o.size[1] if k == 0 else o.size[0]
+                if across + GRASP_CLEARANCE <= opening:
+                    out.append(("top", trans(x, y, zt) @ rz(yaw_o + k * math.pi / 2) @ DOWN))
+    return out
+
+
+def check_graspable(problem, name):
+    """Raise Infeasible when no grasp of the allowed kinds fits the gripper and the goal needs the object."""
+    geometry = problem.geometry
+    o = geometry.specs[name]
+    kinds = _problem_grasps(problem)
+    rng = np.random.default_rng(0)
+    found = any(grasp_poses(geometry, name, pose4(*o.pose), h, kinds, rng, n_side=1)
+                for h in np.linspace(-math.pi, math.pi, 8, endpoint=False))
+    if not found and name in problem.goal:
+        width = 2 * o.size[0] if o.shape == "cylinder" else min(o.size[0], o.size[1])
+        raise Infeasible(f"{name} is {width:.3f} m wide but the PR2 gripper opens only "
+                         f"{geometry.robot.max_gripper_opening:.3f} m: no grasp exists")
+    return found
+
+
+def _waypoints(geometry, world, arm, T, kind, rng, ignore):
+    """(approach, raise) for tool pose T: ``approach`` is a list of IK solutions along the straight
+    line from the pre-grasp (PRE_GRASP behind T along the tool x axis) to T, each seeded by the next
+    one; ``raise`` lifts the grasp by LIFT, then withdraws it by PRE_GRASP (back along the approach
+    for side grasps, further up for top grasps), out of shelves and cubbies. None if IK fails, the
+    joint path strays, or a piece of it hits a fixed obstacle."""
+    grasp = geometry.ik(world, arm, T, rng, ignore=ignore, gripper="open", attempts=10)
+    if grasp is None:
+        return None
+    line = _line(geometry, world, arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, grasp, rng, ignore, "open")
+    if line is None or not geometry.static_path_ok(world.with_gripper(arm, "open"), arm, line, ignore):
+        return None
+    up = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, grasp, rng, ignore, "open")
+    if up is None:
+        return None
+    U = trans(0, 0, LIFT) @ T
+    back_at = (lambda d: trans(0, 0, d) @ U) if kind == "top" else (lambda d: U @ trans(-d, 0, 0))
+    back = _line(geometry, world, arm, U, back_at, PRE_GRASP, up[-1], rng, ignore, "open")
+    if back is None:
+        return None
+    lift = up + back[1:]
+    if not geometry.static_path_ok(world.with_gripper(arm, "open"), arm, lift, ignore):
+        return None
+    return tuple(reversed(line)), tuple(lift[1:])
+
+
+def _line(geometry, world, arm, T, at, length, start, rng, ignore=(), gripper=None):
+    """IK solutions for at(0) = T, at(STEP), ..., at(length), each seeded by the previous one."""
+    space = geometry.arm_space[arm]
+    n = max(1, math.ceil(length / LINE_STEP - 1e-9))
+    out = [start]
+    for k in range(1, n + 1):
+        v = geometry.ik(world, arm, at(length * k / n), rng, ignore=ignore, seed=out[-1], attempts=2, gripper=gripper)
+        if v is None or space.distance(v, out[-1]) > 0.35:
+            return None
+        out.append(v)
+    return out
+
+
+def _bearing(base, x, y):
+    return math.atan2(y - base[1], x - base[0])
+
+
+def pick(problem, step, world, rng, limit: int = 6):
+    obj, arm = step.args[0], step.args[1]
+    geometry = problem.geometry
+    if world.holder(obj) is not None:
+        return
+    check_graspable(problem, obj)
+    P = world.objects[obj]
+    heading = _bearing(world.base, P[0, 3], P[1, 3])
+    n = 0
+    planned = world.tloc.get(("grasp", obj, arm))
+    if planned is not None:  # the grasp move_base checked from this base
+        kind, T, wps = planned
+        n += 1
+        yield Candidate(wps, {step.args[3]: T.tolist()}, f"{kind} grasp, tool yaw {math.degrees(_yaw(T)):.0f} deg")
+    for kind, T in grasp_poses(geometry, obj, P, heading, _problem_grasps(problem), rng):
+        wps = _waypoints(geometry, world, arm, T, kind, rng, ignore=(obj,))
+        if wps is None:
+            continue
+        n += 1
+        yield Candidate(wps, {step.args[3]: T.tolist()}, f"{kind} grasp, tool yaw {math.degrees(_yaw(T)):.0f} deg")
+        if n >= limit:
+            return
+
+
+def _yaw(T):
+    x = T[:3, 0]
+    if abs(x[2]) > 0.7:  # pointing down: use the closing axis
+        return math.atan2(T[1, 1], T[0, 1]) - math.pi / 2
+    return math.atan2(x[1], x[0])
+
+
+def move_base(problem, step, world, rng, limit: int = 6, tries: int = 150):
+    to = step.args[0]
+    geometry = problem.geometry
+    info = geometry.refs.get(to)
+    if info is None:  # bp_init
+        yield Candidate((tuple(geometry.layout.base),), {to: list(geometry.layout.base)}, "the initial base pose")
+        return
+    skolem, args = info
+    if skolem == "bpfg":
+        yield from _bases_for_grasp(problem, world, args[0], args[1], to, rng, limit, tries)
+    else:
+        yield from _bases_for_putdown(problem, world, args[0], args[1], args[2], to, rng, limit, tries)
+
+
+def _base_free(geometry, world, base) -> bool:
+    from dataclasses import replace
+
+    w = replace(world, base=tuple(base))
+    if not geometry.base_space.within_bounds(base):
+        return False
+    return not geometry.in_collision(w, movables=False)
+
+
+def _annulus(rng, x, y, rmin=0.45, rmax=0.80):
+    r, a = rng.uniform(rmin, rmax), rng.uniform(-math.pi, math.pi)
+    bx, by = x + r * math.cos(a), y + r * math.sin(a)
+    return (float(bx), float(by), float(wrap(math.atan2(y - by, x - bx) + rng.uniform(-0.3, 0.3))))
+
+
+def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries):
+    from dataclasses import replace
+
+    geometry = problem.geometry
+    if world.holder(obj) is not None or world.held.get(arm):
+        return
+    check_graspable(problem, obj)
+    P = world.objects[obj]
+    x, y = P[0, 3], P[1, 3]
+    kinds = _problem_grasps(problem)
+    candidates = [tuple(world.base)] + [_annulus(rng, x, y) for _ in range(tries)]
+    n = 0
+    for i, base in enumerate(candidates):
+        if not _base_free(geometry, world, base):
+            continue
+        w = replace(world, base=base)
+        heading = _bearing(base, x, y)
+        for kind, T in grasp_poses(geometry, obj, P, heading, kinds, rng, n_side=2):
+            wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,))
+            if wps is not None:
+                n += 1
+                # the grasp found here travels with the world to pick, which offers it first
+                yield Candidate((base,), {ref: list(base), "grasp": (("grasp", obj, arm), (kind, T, wps))},
+                                ("stay at " if i == 0 else "base at ") + _fmt(base))
+                if n >= limit:
+                    return
+                break
+
+
+def _heading_of_tool(T):
+    return _yaw(T)
+
+
+def _spots(problem, world, obj, loc, rng, tries):
+    """Put-down poses of obj (upright, resting) in region loc, away from fixed obstacles; in the
+    generic 'table' region also away from other objects and from every other named region."""
+    geometry = problem.geometry
+    o = geometry.specs[obj]
+    xmin, xmax, ymin, ymax = geometry.layout.regions[loc]
+    m = (o.size[0] if o.shape == "cylinder" else 0.5 * math.hypot(o.size[0], o.size[1])) + 0.01
+    z = TABLE_TOP + o.height / 2 + REST_GAP
+    others = {k: v for k, v in geometry.layout.regions.items() if k not in (loc, "table")}
+    for _ in range(tries):
+        x, y = rng.uniform(xmin + m, xmax - m), rng.uniform(ymin + m, ymax - m)
+        if math.hypot(x - world.base[0], y - world.base[1]) > 1.2:
+            continue
+        if loc == "table" and any(a - m <= x <= b + m and c - m <= y <= d + m for a, b, c, d in others.values()):
+            continue
+        P = pose4(x, y, z, 0.0)
+        hits = geometry.cw.objects_overlap(obj, P)
+        if hits & geometry.fixed:
+            continue
+        if loc == "table":
+            if hits or any(math.hypot(x - Q[0, 3], y - Q[1, 3]) < m + 0.06 for Q in world.objects.values()):
+                continue
+        yield float(x), float(y), float(z)
+
+
+def _bases_for_putdown(problem, world, obj, arm, loc, ref, rng, limit, tries):
+    from dataclasses import replace
+
+    geometry = problem.geometry
+    if world.holder(obj) != arm:
+        return
+    G = world.held[arm][1]
+    geometry.sync(world)
+    n = 0
+    for x, y, z in _spots(problem, world, obj, loc, rng, tries):
+        for _ in range(4):
+            base = _annulus(rng, x, y)
+            if not _base_free(geometry, world, base):
+                continue
+            P, T = _putdown(G, x, y, z, _bearing(base, x, y) + rng.uniform(-0.3, 0.3))
+            w = replace(world, base=base)
+            if geometry.ik(w, arm, T, rng, attempts=4) is None:
+                continue
+            n += 1
+            yield Candidate((base,), {ref: list(base), "tloc": (obj, P)},
+                            f"base at {_fmt(base)} to put {obj} at {_fmt((x, y))}")
+            if n >= limit:
+                return
+            break
+
+
+def _putdown(G, x, y, z, tool_heading):
+    """Object pose at (x, y, z) and tool pose for grasp G such that the tool faces ``tool_heading``."""
+    P0 = pose4(x, y, z, 0.0)
+    T0 = P0 @ np.linalg.inv(G)
+    yaw = wrap(tool_heading - _heading_of_tool(T0))
+    P = pose4(x, y, z, yaw)
+    return P, P @ np.linalg.inv(G)
+
+
+def place(problem, step, world, rng, variants: int = 4):
+    obj, arm, loc = step.args[0], step.args[1], step.args[2]
+    geometry = problem.geometry
+    if world.holder(obj) != arm:
+        return
+    G = world.held[arm][1]
+    xmin, xmax, ymin, ymax = geometry.layout.regions[loc]
+    spots = []
+    if obj in world.tloc:
+        P = np.asarray(world.tloc[obj])
+        x, y, z = P[:3, 3]
+        spots.append((x, y, z, _heading_of_tool(P @ np.linalg.inv(G))))
+        for _ in range(variants):
+            dx, dy = rng.uniform(-0.02, 0.02, size=2) if loc != "table" else rng.uniform(-0.03, 0.03, size=2)
+            spots.append((float(np.clip(x + dx, xmin, xmax)), float(np.clip(y + dy, ymin, ymax)), z,
+                          spots[0][3] + rng.uniform(-0.3, 0.3)))
+    else:  # no spot chosen by move_base (e.g. a custom plan): sample one
+        for x, y, z in _spots(problem, world, obj, loc, rng, 40):
+            spots.append((x, y, z, _bearing(world.base, x, y)))
+            if len(spots) > variants:
+                break
+    for x, y, z, heading in spots:
+        P, T = _putdown(G, x, y, z, heading)
+        top = abs(T[2, 0]) > 0.7
+        put = geometry.ik(world, arm, T, rng, attempts=6)
+        if put is None:
+            continue
+        lower = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, put, rng)
+        back_at = (lambda d: trans(0, 0, d) @ T) if top else (lambda d: T @ trans(-d, 0, 0))
+        back = _line(geometry, world.with_gripper(arm, "open"), arm, T, back_at, PRE_GRASP, put, rng, gripper="open")
+        if lower is None or back is None:
+            continue
+        yield Candidate((tuple(reversed(lower)), tuple(back[1:])), {step.args[4]: T.tolist(), "object_pose": P.tolist()},
+                        f"{obj} at {_fmt((x, y))}")
+
+
+def _fmt(p):
+    return "(" + ", ".join(f"{v:.2f}" for v in p) + ")"

@@ -1,0 +1,191 @@
+"""Independent re-check of a PR2 trajectory.json: continuity (no teleports), joint limits, collisions
+with everything (held objects included) at a resolution 5x finer than planning, grasps consistent with
+what is held, released objects resting where the gripper put them, and the goal at the end."""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from .scene import REST_GAP, TABLE_TOP
+from .world import RES_ARM, RES_BASE
+
+FINE_ARM, FINE_BASE = RES_ARM / 5, RES_BASE / 5
+POS_TOL, ROT_TOL = 2e-3, math.radians(2)
+START_TOL = 1e-6
+
+
+def _pose_close(A, B, pos=POS_TOL, rot=ROT_TOL):
+    A, B = np.asarray(A, float), np.asarray(B, float)
+    d = np.linalg.inv(A) @ B
+    angle = math.acos(max(-1.0, min(1.0, (np.trace(d[:3, :3]) - 1) / 2)))
+    return np.linalg.norm(A[:3, 3] - B[:3, 3]) <= pos and angle <= rot
+
+
+def validate_trajectory(geometry, plan, trajectory) -> list[str]:
+    errors: list[str] = []
+    robot = geometry.robot
+    world = geometry.initial_world()
+    init = trajectory.get("initial", {})
+    if init and list(init.get("base", [])) != list(world.base):
+        errors.append("the trajectory's initial base pose differs from the problem's")
+    steps = trajectory.get("steps", [])
+    if len(steps) != len(plan):
+        return errors + [f"the trajectory has {len(steps)} steps but the plan has {len(plan)}"]
+    for i, (step, data) in enumerate(zip(plan, steps)):
+        where = f"step {i} {step}"
+        if data.get("action") != step.action or list(data.get("args", [])) != list(step.args):
+            return errors + [f"{where}: the trajectory's step is {data.get('action')}({', '.join(data.get('args', []))})"]
+        for k, seg in enumerate(data.get("segments", [])):
+            kind = seg.get("kind")
+            at = f"{where} segment {k} ({kind})"
+            if "points" in seg:
+                world, why = _check_motion(geometry, world, seg, at)
+                if why:
+                    return errors + [why]
+            elif kind == "gripper":
+                arm = seg["arm"]
+                if seg["command"] == "open":
+                    world = world.with_gripper(arm, "open")
+                else:
+                    if arm in world.held:
+                        return errors + [f"{at}: closes the {arm} gripper while it holds {world.held[arm][0]}"]
+                    world = world.with_gripper(arm, "closed")
+                if geometry.in_collision(world):
+                    pairs = geometry.cw.collision_pairs(geometry.sync(world))
+                    return errors + [f"{at}: the {arm} gripper collides after '{seg['command']}': {_pairs(pairs)}"]
+            elif kind == "grasp":
+                arm, obj = seg["arm"], seg["object"]
+                if arm in world.held:
+                    return errors + [f"{at}: grasps {obj} while the {arm} arm holds {world.held[arm][0]}"]
+                if obj not in world.objects:
+                    return errors + [f"{at}: grasps {obj}, which is not resting anywhere (held?)"]
+                if world.grippers[arm] != "open":
+                    return errors + [f"{at}: grasps {obj} with a closed gripper"]
+                q = geometry.config(world)
+                tool = robot.tool_pose(q, arm)
+                G = np.asarray(seg["grasp"], float)
+                if not _pose_close(tool @ G, world.objects[obj]):
+                    return errors + [f"{at}: {obj} is not at the gripper (the claimed grasp puts it "
+                                     f"{np.linalg.norm((tool @ G)[:3, 3] - world.objects[obj][:3, 3]):.3f} m away)"]
+                tool_in_obj = np.linalg.inv(G)[:3, 3]  # the point between the finger pads, in the object frame
+                if not _inside(geometry.specs[obj], tool_in_obj):
+                    return errors + [f"{at}: the tool frame is at {np.round(tool_in_obj, 3).tolist()} in {obj}'s frame, "
+                                     f"outside the object: not a grasp"]
+                width = geometry.grasp_width(obj, G)
+                if width > robot.max_gripper_opening:
+                    return errors + [f"{at}: {obj} is {width:.3f} m across the fingers, wider than the gripper opens"]
+                objects = {n: v for n, v in world.objects.items() if n != obj}
+                world = replace(world, objects=objects, held={**world.held, arm: (obj, G)},
+                                grippers={**world.grippers, arm: "closed"})
+            elif kind == "release":
+                arm, obj = seg["arm"], seg["object"]
+                if world.held.get(arm, (None,))[0] != obj:
+                    return errors + [f"{at}: releases {obj} but the {arm} arm holds "
+                                     f"{world.held.get(arm, ('nothing',))[0]}"]
+                q = geometry.config(world)
+                P = robot.tool_pose(q, arm) @ world.held[arm][1]
+                if not _pose_close(P, seg["pose"]):
+                    return errors + [f"{at}: {obj} is released away from the gripper (teleported)"]
+                spec = geometry.specs[obj]
+                bottom = P[2, 3] - spec.height / 2
+                upright = P[2, 2] > math.cos(math.radians(2))
+                xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
+                on_table = xmin <= P[0, 3] <= xmax and ymin <= P[1, 3] <= ymax
+                if not (upright and on_table and TABLE_TOP <= bottom <= TABLE_TOP + REST_GAP + 0.005):
+                    return errors + [f"{at}: {obj} is released at {np.round(P[:3, 3], 3).tolist()}, not resting upright "
+                                     f"on the table"]
+                held = {a: v for a, v in world.held.items() if a != arm}  # release = open the gripper + detach
+                world = replace(world, objects={**world.objects, obj: P}, held=held, grippers={**world.grippers, arm: "open"})
+                if geometry.in_collision(world):
+                    pairs = geometry.cw.collision_pairs(geometry.sync(world))
+                    return errors + [f"{at}: {obj} released into a collision: {_pairs(pairs)}"]
+            else:
+                return errors + [f"{at}: unknown segment kind {kind!r}"]
+    errors += _check_goal(geometry, world)
+    return errors
+
+
+def _check_motion(geometry, world, seg, at):
+    robot = geometry.robot
+    group_name = seg.get("group")
+    if group_name == "base":
+        space, names, fine = geometry.base_space, ["x", "y", "theta"], FINE_BASE
+    elif group_name in ("left_arm", "right_arm"):
+        arm = group_name.split("_")[0]
+        space, names, fine = geometry.arm_space[arm], list(robot.group(group_name).dof_names), FINE_ARM
+    else:
+        return world, f"{at}: unknown joint group {group_name!r}"
+    if list(seg.get("joint_names", [])) != names:
+        return world, f"{at}: joint names {seg.get('joint_names')} are not the {group_name} joints"
+    holding = {a: o for a, (o, _) in world.held.items()}
+    if seg.get("holding", holding) != holding:
+        return world, f"{at}: claims to hold {seg.get('holding')} but holds {holding}"
+    points = seg["points"]
+    if not points:
+        return world, f"{at}: an empty trajectory"
+    times = [p["time_from_start"] for p in points]
+    if any(b < a for a, b in zip(times, times[1:])):
+        return world, f"{at}: time stamps go backwards"
+    path = [np.asarray(p["positions"], float) for p in points]
+    if any(len(p) != len(names) for p in path):
+        return world, f"{at}: a point has the wrong number of positions"
+    current = np.asarray(world.base if group_name == "base" else world.arms[arm], float)
+    if space.distance(path[0], current) > START_TOL:
+        return world, (f"{at}: starts at {np.round(path[0], 3).tolist()} but the {group_name} is at "
+                       f"{np.round(current, 3).tolist()} (a teleport)")
+    group = robot.group(group_name)
+
+    def limits(q):
+        if group_name != "base" and not group.within_bounds(q):
+            bad = [f"{n}={v:.3f} not in [{lo:.3f}, {hi:.3f}]" for n, v, lo, hi, c in
+                   zip(names, q, group.lower, group.upper, group.circular) if not c and not lo - 1e-9 <= v <= hi + 1e-9]
+            return f"{at}: joint limit violated: {', '.join(bad)}"
+        if group_name == "base" and not space.within_bounds(q):
+            return f"{at}: the base leaves the workspace at {np.round(q, 3).tolist()}"
+        return None
+
+    for q in path:  # waypoints first: a bad waypoint is named even if the way there collides
+        why = limits(q)
+        if why:
+            return world, why
+    for q in space.densify(path, fine):
+        why = limits(q)
+        if why:
+            return world, why
+        w = replace(world, base=tuple(q)) if group_name == "base" else world.with_arm(arm, q)
+        if geometry.in_collision(w):
+            pairs = geometry.cw.collision_pairs(geometry.sync(w))
+            return world, f"{at}: collision {_pairs(pairs)} at {np.round(q, 3).tolist()}"
+    last = path[-1]
+    world = replace(world, base=tuple(float(v) for v in last)) if group_name == "base" else world.with_arm(arm, last)
+    return world, None
+
+
+def _check_goal(geometry, world) -> list[str]:
+    layout = geometry.layout
+    t = layout.target
+    if layout.goal == "hold":
+        if world.holder(t) is None:
+            return [f"goal not satisfied: {t} is not held at the end"]
+        return []
+    if world.holder(t) is not None:
+        return [f"goal not satisfied: {t} is still held at the end"]
+    if layout.goal == "tidy" and world.held:
+        return [f"goal not satisfied: {', '.join(o for o, _ in world.held.values())} still held at the end"]
+    xmin, xmax, ymin, ymax = layout.regions["goal_spot"]
+    x, y = world.objects[t][0, 3], world.objects[t][1, 3]
+    if not (xmin <= x <= xmax and ymin <= y <= ymax):
+        return [f"goal not satisfied: {t} rests at ({x:.3f}, {y:.3f}), outside goal_spot"]
+    return []
+
+
+def _inside(spec, p, tol=0.005) -> bool:
+    if spec.shape == "cylinder":
+        return math.hypot(p[0], p[1]) <= spec.size[0] + tol and abs(p[2]) <= spec.size[1] / 2 + tol
+    return all(abs(p[i]) <= spec.size[i] / 2 + tol for i in range(3))
+
+
+def _pairs(pairs):
+    return ", ".join(f"{a}-{b}" for a, b in sorted(set(pairs))) or "(none listed)"

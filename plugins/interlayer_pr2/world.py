@@ -1,0 +1,444 @@
+"""PR2 geometry: the refinement runtime of the pr2 domain (interlayer.refine.Geometry).
+
+World state: base (x, y, theta), both arm vectors, gripper states, resting object poses (4x4),
+held objects per arm with their grasp (tool_T_object), and the put-down spot (tloc) chosen by the
+move_base that precedes a place. One PR2 + CollisionWorld per geometry, synced lazily to the world
+being refined. Arm motions are planned in the 7-D joint space of the arm (the continuous forearm and
+wrist roll bounded to [-pi, pi]), base motions in SE(2) with the arms in their driving posture.
+
+Every action returns its arm to a driving posture: tucked when empty, a carry posture (the hand
+raised beside the shoulder) when holding, so that move_base never sweeps an outstretched arm.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from interlayer.motion import ConfigSpace, InterpolatingPlanner, MotionQuery
+from interlayer.refine import Failure, StepOutcome
+from interlayer.trace import Stats
+
+from .scene import BASE_LIMITS, Layout
+
+ARMS = ("left", "right")
+RES_ARM = 0.02  # rad between collision checks when planning an arm (the validator checks 5x finer)
+# Planning keeps this far from fixed obstacles (their boxes are padded), so that contacts missed
+# between two checks at RES_ARM (the fingertips move up to ~1.6 cm per 0.02 rad) are not real ones;
+# the validator uses the unpadded scene.
+PADDING = 0.015
+RES_BASE = 0.01  # m / rad between collision checks when planning the base
+PRE_GRASP = 0.20  # back-off of the pre-grasp along the tool x axis (approach and retreat length)
+LIFT = 0.05  # raise after grasping / height above the put-down spot
+ARM_SPEED, BASE_SPEED = 0.6, 0.3  # rad/s, m/s: nominal, for the trajectory's time stamps
+# First IK seed for reaching forward at table height (elbow up, measured typical solutions)
+REACH_SEED = {"left": (-0.4, -0.25, 3.3, -1.53, 2.75, -1.2, 0.0), "right": (0.4, -0.25, -3.3, -1.53, -2.75, -1.2, 0.0)}
+# Carry postures (tool position in the base frame, yaw away from the body): tried in order.
+CARRY = ((0.35, 0.45, 1.15, 0.3), (0.30, 0.50, 1.10, 0.5), (0.40, 0.40, 1.20, 0.1), (0.25, 0.55, 1.20, 0.7))
+
+
+def rz(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+
+
+def trans(x, y, z) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def pose4(x, y, z, yaw) -> np.ndarray:
+    return trans(x, y, z) @ rz(yaw)
+
+
+def wrap(a):
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+@dataclass(frozen=True)
+class World:
+    base: tuple
+    arms: dict = field(hash=False)  # arm -> 7 floats
+    grippers: dict = field(hash=False)  # arm -> "open" | "closed"
+    objects: dict = field(hash=False)  # name -> 4x4 pose of objects that are not held
+    held: dict = field(hash=False)  # arm -> (object, tool_T_object 4x4)
+    # what the last move_base chose its base pose for: object -> put-down pose (4x4), or
+    # ("grasp", object, arm) -> (kind, tool pose, waypoints) of a grasp IK found from that base
+    tloc: dict = field(hash=False, default_factory=dict)
+
+    def holder(self, name):
+        return next((a for a, (o, _) in self.held.items() if o == name), None)
+
+    def with_arm(self, arm, values) -> "World":
+        return replace(self, arms={**self.arms, arm: tuple(float(v) for v in values)})
+
+    def with_gripper(self, arm, state) -> "World":
+        return replace(self, grippers={**self.grippers, arm: state})
+
+    def to_json(self) -> dict:
+        return {"base": list(self.base), "arms": {a: list(v) for a, v in self.arms.items()},
+                "grippers": dict(self.grippers), "objects": {k: np.asarray(v).tolist() for k, v in self.objects.items()},
+                "held": {a: {"object": o, "grasp": np.asarray(g).tolist()} for a, (o, g) in self.held.items()}}
+
+
+class PR2Geometry:
+    """Refinement runtime of the pr2 domain."""
+
+    def __init__(self, layout: Layout, padding: float = PADDING):
+        from interlayer_pinocchio import PR2, CollisionWorld
+
+        self.layout = layout
+        self.padding = padding
+        self.robot = PR2(base_limits=BASE_LIMITS)
+        self.cw = CollisionWorld(self.robot)
+        for o in layout.fixed + layout.objects:
+            T = pose4(*o.pose)
+            if o.shape == "box":
+                size = o.size
+                if not o.movable and padding:  # fixed obstacles grow by `padding` (the table not upwards:
+                    # objects rest on it and are put down onto it)
+                    size = (size[0] + 2 * padding, size[1] + 2 * padding, size[2] + (2 * padding if o.name != "table" else 0))
+                self.cw.add_box(o.name, size, T, movable=o.movable)
+            else:
+                self.cw.add_cylinder(o.name, o.size[0], o.size[1], T, movable=o.movable)
+        self.specs = {o.name: o for o in layout.objects}
+        self.fixed = {o.name for o in layout.fixed}
+        self.approach = InterpolatingPlanner(name="interpolate")
+        self.stats = Stats()
+        self.refs = {}  # reference name -> (skolem, args): filled by make_problem
+        self._synced = None
+        lo, hi = BASE_LIMITS
+        self.base_space = ConfigSpace("se2", (lo[0], hi[0], -math.pi), (lo[1], hi[1], math.pi), (False, False, True), RES_BASE)
+        # Arm spaces: the continuous forearm / wrist roll joints are treated as bounded to [-pi, pi]
+        # without wrap-around, so that every interpolation agrees: OMPL's (a RealVectorStateSpace
+        # interpolates linearly), the core's densify (validator, straight lines) and a controller
+        # reading trajectory.json (linear in joint values).
+        self.arm_space = {}
+        for arm in ARMS:
+            g = self.robot.group(f"{arm}_arm")
+            self.arm_space[arm] = ConfigSpace("vector", tuple(g.lower), tuple(g.upper), (False,) * g.dof, RES_ARM)
+
+    # -- world ----------------------------------------------------------------------------------
+    def initial_world(self) -> World:
+        from interlayer_pinocchio import TUCKED_ARMS
+
+        return World(tuple(self.layout.base), {a: tuple(TUCKED_ARMS[a]) for a in ARMS}, {a: "closed" for a in ARMS},
+                     {o.name: pose4(*o.pose) for o in self.layout.objects}, {})
+
+    def snapshot(self, world: World) -> dict:
+        return world.to_json()
+
+    def config(self, world: World) -> np.ndarray:
+        r = self.robot
+        q = r.default_q(world.base)
+        for arm in ARMS:
+            q = r.set(q, f"{arm}_arm", world.arms[arm])
+            if world.grippers[arm] == "open":
+                q = r.open_gripper(q, arm)
+            elif arm in world.held:
+                q = r.set_gripper_opening(q, arm, max(0.0, self.grasp_width(world.held[arm][0], world.held[arm][1])))
+            else:
+                q = r.close_gripper(q, arm)
+        return q
+
+    def grasp_width(self, name, G) -> float:
+        """The object's extent along the tool's closing (y) axis for grasp G (tool_T_object)."""
+        o = self.specs[name]
+        if o.shape == "cylinder":
+            return 2 * o.size[0]
+        y_in_obj = np.linalg.inv(G)[:3, :3] @ np.array([0.0, 1.0, 0.0])
+        return float(sum(abs(y_in_obj[i]) * o.size[i] for i in range(3)))
+
+    def object_pose(self, world: World, name, q=None) -> np.ndarray:
+        arm = world.holder(name)
+        if arm is None:
+            return world.objects[name]
+        q = self.config(world) if q is None else q
+        return self.robot.tool_pose(q, arm) @ world.held[arm][1]
+
+    def sync(self, world: World) -> np.ndarray:
+        """Make the collision world match ``world``; returns its configuration."""
+        q = self.config(world)
+        if world is self._synced:
+            return q
+        cw = self.cw
+        want = {o: (a, G) for a, (o, G) in world.held.items()}
+        for att in cw.held():
+            w = want.get(att.name)
+            if w is None or w[0] != att.arm or not np.allclose(w[1], att.tool_T_object, atol=1e-9):
+                cw.detach(att.name, q)
+        attached = {att.name for att in cw.held()}
+        for name, T in world.objects.items():
+            if name not in want:
+                cw.set_pose(name, T)
+        for name, (arm, G) in want.items():
+            if name not in attached:
+                cw.set_pose(name, self.robot.tool_pose(q, arm) @ G)
+                cw.attach(name, arm, q)
+        self._synced = world
+        return q
+
+    # -- queries ---------------------------------------------------------------------------------
+    def _timed(self, fn, acc):
+        def wrapped(v):
+            t0 = time.perf_counter()
+            try:
+                return fn(v)
+            finally:
+                acc[0] += time.perf_counter() - t0
+        return wrapped
+
+    def arm_query(self, world, arm, start, goal, label, acc) -> MotionQuery:
+        q = self.sync(world)
+        group = self.robot.group(f"{arm}_arm")
+        held = {o for o, _ in world.held.values()}
+        valid = self.cw.checker_for(f"{arm}_arm", q)
+        static = self.cw.checker_for(f"{arm}_arm", q, movables=False)
+
+        def movables_at(v):
+            return self.cw.colliding_movables(group.set(q, v)) - held
+
+        return MotionQuery(self.arm_space[arm], np.asarray(start, float), np.asarray(goal, float),
+                           is_valid=self._timed(lambda v: group.within_bounds(v) and valid(v), acc),
+                           is_valid_static=self._timed(lambda v: group.within_bounds(v) and static(v), acc),
+                           movables_at=self._timed(movables_at, acc), label=label)
+
+    def base_query(self, world, start, goal, label, acc) -> MotionQuery:
+        q = self.sync(world)
+        group = self.robot.group("base")
+        space = self.base_space
+        valid = self.cw.checker_for("base", q)
+        static = self.cw.checker_for("base", q, movables=False)
+        return MotionQuery(space, np.asarray(start, float), np.asarray(goal, float),
+                           is_valid=self._timed(lambda v: space.within_bounds(v) and valid(v), acc),
+                           is_valid_static=self._timed(lambda v: space.within_bounds(v) and static(v), acc),
+                           movables_at=self._timed(lambda v: self.cw.colliding_movables(group.set(q, v)), acc),
+                           label=label)
+
+    def static_path_ok(self, world, arm, path, ignore=()) -> bool:
+        """The piecewise-straight arm path avoids fixed obstacles (checked at RES_ARM)."""
+        q = self.sync(world)
+        group = self.robot.group(f"{arm}_arm")
+        check = self.cw.checker_for(f"{arm}_arm", q, ignore=tuple(ignore), movables=False)
+        with self.stats.timer("collision_checking"):
+            return all(check(v) for v in self.arm_space[arm].densify(list(path)) if group.within_bounds(v))
+
+    def in_collision(self, world, movables=True) -> bool:
+        q = self.sync(world)
+        with self.stats.timer("collision_checking"):
+            return self.cw.in_collision(q, movables=movables)
+
+    def ik(self, world, arm, target, rng, movables=False, ignore=(), seed=None, attempts=8, gripper=None):
+        """Arm vector reaching ``target`` from ``world``'s base (seeded by ``seed``), checked against
+        fixed obstacles (and movables if asked), or None."""
+        from interlayer_pinocchio import solve_ik
+
+        w = world.with_arm(arm, REACH_SEED[arm] if seed is None else seed)
+        if gripper:
+            w = w.with_gripper(arm, gripper)
+        q = self.sync(w)
+        with self.stats.timer("ik"):
+            return solve_ik(self.robot, arm, target, q, rng=rng, world=self.cw, attempts=attempts,
+                            ignore=tuple(ignore), movables=movables)
+
+    # -- refinement --------------------------------------------------------------------------------
+    def refine_step(self, step, world: World, candidate, motion) -> StepOutcome:
+        acc = [0.0]
+        try:
+            if step.action == "move_base":
+                return self._move_base(step, world, candidate, motion, acc)
+            if step.action == "pick":
+                return self._pick(step, world, candidate, motion, acc)
+            if step.action == "place":
+                return self._place(step, world, candidate, motion, acc)
+            raise ValueError(step.action)
+        finally:
+            self.stats.add_time("collision_checking", acc[0])
+
+    def _plan(self, planner, query, kind, group, segments, holding, world=None, acc=None, retries=2):
+        """Plan; a path is then re-checked at the validator's resolution (RES / 5) and planned again
+        (up to ``retries`` times) if that finds a contact the planner stepped over."""
+        for _ in range(retries + 1):
+            res = planner.plan(query)
+            if not res.ok or world is None or self.fine_ok(world, group, res.path, acc):
+                break
+            self.stats.count("fine_check_replans")
+        else:
+            from interlayer.motion import MotionPlan
+
+            res = MotionPlan(False, reason="every path touched an obstacle between two collision checks")
+        if res.ok:
+            segments.append(self._segment(kind, group, res.path, holding))
+        return res
+
+    def fine_ok(self, world, group, path, acc=None) -> bool:
+        """The path is collision-free at the validator's resolution (5x finer than planning)."""
+        q = self.sync(world)
+        check = self.cw.checker_for(group, q)
+        space = self.base_space if group == "base" else self.arm_space[group.split("_")[0]]
+        t0 = time.perf_counter()
+        ok = all(check(v) for v in space.densify(list(path), space.resolution / 5))
+        if acc is not None:
+            acc[0] += time.perf_counter() - t0
+        return ok
+
+    def _segment(self, kind, group, path, holding):
+        g = self.robot.group(group)
+        space = self.base_space if group == "base" else self.arm_space[group.split("_")[0]]
+        speed = BASE_SPEED if group == "base" else ARM_SPEED
+        t, points = 0.0, []
+        for i, p in enumerate(path):
+            if i:
+                t += space.distance(path[i - 1], p) / speed
+            points.append({"positions": [float(v) for v in p], "time_from_start": round(t, 4)})
+        names = ["x", "y", "theta"] if group == "base" else list(g.dof_names)
+        return {"kind": kind, "group": group, "joint_names": names, "points": points, "holding": holding}
+
+    def _line(self, w, arm, path, kind, segs, acc):
+        """A piecewise-straight joint path through IK waypoints, each piece checked like a straight line."""
+        from interlayer.motion import MotionPlan
+
+        for a, b in zip(path, path[1:]):
+            res = self.approach.plan(self.arm_query(w, arm, a, b, f"{kind}", acc))
+            if not res.ok:
+                return res
+        if not self.fine_ok(w, f"{arm}_arm", path, acc):
+            return MotionPlan(False, reason="the straight line touches an obstacle between two collision checks")
+        segs.append(self._segment(kind, f"{arm}_arm", [np.asarray(p, float) for p in path], _holding(w)))
+        return MotionPlan(True, tuple(path))
+
+    def _move_base(self, step, world, cand, motion, acc):
+        goal = tuple(float(v) for v in cand.waypoints[0])
+        segs = []
+        res = self._plan(motion, self.base_query(world, world.base, goal, "move_base", acc), "base", "base", segs,
+                         _holding(world), world, acc)
+        if not res.ok:
+            return _failure(res, "base")
+        tloc = {}  # what this base pose was chosen for: a put-down spot, or a grasp checked by IK
+        if "tloc" in cand.values:
+            obj, P = cand.values["tloc"]
+            tloc[obj] = np.asarray(P)
+        if "grasp" in cand.values:
+            key, value = cand.values["grasp"]
+            tloc[key] = value
+        return StepOutcome(True, replace(world, base=goal, tloc=tloc), segs)
+
+    def _pick(self, step, world, cand, motion, acc):
+        obj, arm = step.args[0], step.args[1]
+        approach, lift = cand.waypoints
+        pre, grasp = approach[0], approach[-1]
+        group, segs, w = f"{arm}_arm", [], world
+        res = self._plan(motion, self.arm_query(w, arm, w.arms[arm], pre, "pick transit", acc), "transit", group, segs,
+                         _holding(w), w, acc)
+        if not res.ok:
+            return _failure(res, "pick transit", obj)
+        w = w.with_arm(arm, pre).with_gripper(arm, "open")
+        if self.in_collision(w):
+            return self._stuck(w, "opening the gripper at the pre-grasp", obj)
+        segs.append({"kind": "gripper", "arm": arm, "command": "open"})
+        res = self._line(w, arm, approach, "approach", segs, acc)
+        if not res.ok:
+            return _failure(res, "pick approach", obj)
+        w = w.with_arm(arm, grasp)
+        q = self.sync(w)
+        G = np.linalg.inv(self.robot.tool_pose(q, arm)) @ w.objects[obj]
+        objects = {k: v for k, v in w.objects.items() if k != obj}
+        w = replace(w, objects=objects, held={**w.held, arm: (obj, G)}, grippers={**w.grippers, arm: "closed"})
+        segs.append({"kind": "grasp", "arm": arm, "object": obj, "grasp": G.tolist()})
+        res = self._line(w, arm, (grasp, *lift), "raise", segs, acc)
+        if not res.ok:
+            return _failure(res, "pick raise", obj)
+        w = w.with_arm(arm, lift[-1])
+        carry = self.carry(w, arm, np.random.default_rng(0))
+        if carry is None:
+            return StepOutcome(False, failure=Failure("ik", (), "no collision-free carry posture"))
+        res = self._plan(motion, self.arm_query(w, arm, lift[-1], carry, "pick carry", acc), "transit", group, segs,
+                         _holding(w), w, acc)
+        if not res.ok:
+            return _failure(res, "pick carry", obj)
+        return StepOutcome(True, w.with_arm(arm, carry), segs)
+
+    def carry(self, world, arm, rng):
+        sg = 1.0 if arm == "left" else -1.0
+        B = self.robot.base_pose(self.config(world))
+        G = world.held[arm][1]
+        top = abs((G[:3, :3].T @ np.array([1.0, 0, 0]))[2]) > 0.7  # tool x along the object's axis: a top grasp
+        for x, y, z, a in CARRY:
+            R = rz(sg * a) if not top else rz(sg * a) @ np.array([[0, 0, 1, 0], [0, 1, 0, 0], [-1, 0, 0, 0], [0, 0, 0, 1.0]])
+            T = B @ trans(x, sg * y, z) @ R
+            sol = self.ik(world, arm, T, rng, movables=True, attempts=10)
+            if sol is not None:
+                return sol
+        return None
+
+    def _place(self, step, world, cand, motion, acc):
+        from interlayer_pinocchio import TUCKED_ARMS
+
+        obj, arm = step.args[0], step.args[1]
+        lower, back = cand.waypoints
+        above, put = lower[0], lower[-1]
+        group, segs, w = f"{arm}_arm", [], world
+        res = self._plan(motion, self.arm_query(w, arm, w.arms[arm], above, "place transit", acc), "transit", group,
+                         segs, _holding(w), w, acc)
+        if not res.ok:
+            return _failure(res, "place transit")
+        w = w.with_arm(arm, above)
+        res = self._line(w, arm, lower, "lower", segs, acc)
+        if not res.ok:
+            return _failure(res, "place lower")
+        w = w.with_arm(arm, put)
+        P = self.object_pose(w, obj)
+        held = {a: v for a, v in w.held.items() if a != arm}
+        w = replace(w, objects={**w.objects, obj: P}, held=held, grippers={**w.grippers, arm: "open"},
+                    tloc={k: v for k, v in w.tloc.items() if k != obj})
+        if self.in_collision(w):
+            return self._stuck(w, "opening the gripper at the put-down pose")
+        segs.append({"kind": "release", "arm": arm, "object": obj, "pose": P.tolist()})
+        res = self._line(w, arm, (put, *back), "retreat", segs, acc)
+        if not res.ok:
+            return _failure(res, "place retreat")
+        w = w.with_arm(arm, back[-1]).with_gripper(arm, "closed")
+        if self.in_collision(w):
+            return self._stuck(w, "closing the gripper after the retreat")
+        segs.append({"kind": "gripper", "arm": arm, "command": "close"})
+        res = self._plan(motion, self.arm_query(w, arm, back[-1], TUCKED_ARMS[arm], "place tuck", acc), "transit", group,
+                         segs, _holding(w), w, acc)
+        if not res.ok:
+            return _failure(res, "place tuck")
+        return StepOutcome(True, w.with_arm(arm, TUCKED_ARMS[arm]), segs)
+
+    def _stuck(self, w, what, exclude=None):
+        q = self.sync(w)
+        movables = self.cw.colliding_movables(q) - {o for o, _ in w.held.values()} - {exclude}
+        if movables:
+            return StepOutcome(False, failure=Failure("obstruction", tuple(sorted(movables)), f"{what}: blocked"))
+        return StepOutcome(False, failure=Failure("unreachable", (), f"{what}: collides with fixed obstacles"))
+
+    # -- output and validation ---------------------------------------------------------------------
+    def trajectory_json(self, plan, outcomes) -> dict:
+        return {"domain": "pr2", "frame": "world, metres / radians; base joints x, y, theta",
+                "format": "per segment a trajectory_msgs/JointTrajectory (joint_names, points with positions and "
+                          "time_from_start); gripper open/close, grasp (attach) and release (detach) events between",
+                "initial": self.initial_world().to_json(),
+                "steps": [{"action": s.action, "args": list(s.args), "segments": o.segments}
+                          for s, o in zip(plan, outcomes)]}
+
+    def validate(self, plan, trajectory: dict) -> list[str]:
+        from .validate import validate_trajectory
+
+        return validate_trajectory(PR2Geometry(self.layout, padding=0.0), plan, trajectory)
+
+
+def _holding(world):
+    return {a: o for a, (o, _) in world.held.items()}
+
+
+def _failure(plan, phase, exclude=None) -> StepOutcome:
+    """An obstruction failure names the movables in the way (never the object being picked)."""
+    blockers = tuple(o for o in plan.obstructions if o != exclude)
+    if blockers:
+        return StepOutcome(False, failure=Failure("obstruction", blockers, f"{phase}: {plan.reason}"))
+    return StepOutcome(False, failure=Failure("unreachable", (), f"{phase}: {plan.reason}"))

@@ -1,0 +1,124 @@
+"""End-to-end tests of the pr2 domain: examples/pr2_pick.toml with both goals, the learned
+obstruction, trajectory.json's shape, the validator, and the infeasible-width case."""
+import json
+import time
+from pathlib import Path
+
+import pytest
+
+from interlayer.api import solve, validate, write_outputs
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "pr2_pick.toml"
+FAST = ["planner.time_limit=90", "planner.task=fast-downward", "planner.motion=ompl:RRTConnect"]
+
+
+@pytest.fixture(scope="module")
+def hold_run(tmp_path_factory):
+    result = solve(EXAMPLE, FAST + ["planner.seed=2"])
+    out = write_outputs(result, tmp_path_factory.mktemp("pr2_hold"))
+    return result, out
+
+
+@pytest.fixture(scope="module")
+def place_run(tmp_path_factory):
+    result = solve(EXAMPLE, FAST + ["planner.seed=2", "problem.goal=place"])
+    out = write_outputs(result, tmp_path_factory.mktemp("pr2_place"))
+    return result, out
+
+
+def test_hold_solves_validates_and_learns_the_obstruction(hold_run):
+    result, out = hold_run
+    assert result.status == "solved", result.reason
+    learned = {" ".join(a) for a in result.learned_facts}
+    assert any(f.startswith("Obstructs blocker gpfg_target_") for f in learned), learned
+    events = json.loads((out / "trace.json").read_text())["events"]
+    failures = [e for e in events if e["type"] == "failure"]
+    assert failures and all(e["failure"]["kind"] == "obstruction" for e in failures)
+    assert "blocker" in failures[0]["failure"]["objects"]
+    assert any(s.action == "pick" and s.args[0] == "blocker" for s in result.plan)  # the blocker is moved first
+    assert result.plan[-1].action == "pick" and result.plan[-1].args[0] == "target"
+    assert validate(out) == []
+    for key in ("task_planning", "motion_planning", "ik", "collision_checking", "interface", "total"):
+        assert key in result.times
+
+
+def test_place_solves_and_validates(place_run):
+    result, out = place_run
+    assert result.status == "solved", result.reason
+    last = result.plan[-1]
+    assert last.action == "place" and last.args[:3] == ("target", last.args[1], "goal_spot")
+    assert validate(out) == []
+
+
+def test_trajectory_json_shape(hold_run):
+    result, out = hold_run
+    traj = json.loads((out / "trajectory.json").read_text())
+    assert traj["domain"] == "pr2" and len(traj["steps"]) == len(result.plan)
+    kinds = set()
+    for step, data in zip(result.plan, traj["steps"]):
+        assert data["action"] == step.action and data["args"] == list(step.args)
+        for seg in data["segments"]:
+            kinds.add(seg["kind"])
+            if "points" in seg:  # a trajectory_msgs/JointTrajectory
+                assert seg["group"] in ("base", "left_arm", "right_arm")
+                n = len(seg["joint_names"])
+                if seg["group"] == "base":
+                    assert seg["joint_names"] == ["x", "y", "theta"]
+                times = [p["time_from_start"] for p in seg["points"]]
+                assert times[0] == 0 and times == sorted(times)
+                assert all(len(p["positions"]) == n for p in seg["points"])
+    assert {"base", "transit", "approach", "raise", "gripper", "grasp"} <= kinds
+
+
+def test_width_infeasible_is_unsolvable_quickly():
+    t0 = time.perf_counter()
+    result = solve(EXAMPLE, FAST + ["problem.target_radius=0.05"])
+    assert result.status == "unsolvable"
+    assert "0.100 m wide" in result.reason and "0.092 m" in result.reason and "no grasp exists" in result.reason
+    assert time.perf_counter() - t0 < 20
+
+
+def test_unknown_problem_key_is_rejected():
+    from interlayer.errors import UserError
+
+    with pytest.raises(UserError, match="problem.colour"):
+        solve(EXAMPLE, ["problem.colour=red"])
+
+
+def test_task_model_is_small_and_uniform():
+    from interlayer.api import build_problem, resolve_config
+    from interlayer.abstraction import abstract
+    from interlayer.plugins import PluginHost
+
+    config = resolve_config(EXAMPLE, ["problem.clutter=6"])
+    model = abstract(build_problem(PluginHost(), config))
+    assert model.uniformity == []
+    assert model.geometric == {"Obstructs": "negative", "PDObstructs": "negative"}
+    objs = [o for o, t in model.objects.items() if t == "obj"]
+    assert len(objs) == 10
+    # 2 arms: bpfg + gpfg per (obj, arm), bpfpd + gpfpd per (obj, arm, loc) with 2 locs
+    assert len(model.references) == 10 * 2 * 2 + 10 * 2 * 2 * 2
+    assert [p for p, _ in model.actions["move_base"].parameters] == ["?to"]
+
+
+def test_top_grasps_allowed(tmp_path):
+    result = solve(EXAMPLE, FAST + ["planner.seed=0", 'problem.grasps=["side","top"]'])
+    assert result.status == "solved", result.reason
+    assert validate(write_outputs(result, tmp_path)) == []
+
+
+@pytest.mark.slow
+def test_tidy_puts_the_blocker_down_on_the_table(tmp_path):
+    result = solve(EXAMPLE, FAST + ["planner.seed=2", "problem.goal=tidy", "planner.time_limit=120"])
+    assert result.status == "solved", result.reason
+    assert any(s.action == "place" and s.args[0] == "blocker" for s in result.plan)
+    assert validate(write_outputs(result, tmp_path)) == []
+
+
+@pytest.mark.slow
+def test_ten_objects_task_planner_calls_stay_fast(tmp_path):
+    result = solve(EXAMPLE, FAST + ["planner.seed=0", "problem.clutter=6"])
+    assert result.status == "solved", result.reason
+    calls = [e["time"] for e in result.trace.events if e["type"] == "task_plan"]
+    assert max(calls[1:] or [0]) < 1.0, calls  # the first call includes the planner's start-up
+    assert validate(write_outputs(result, tmp_path)) == []
