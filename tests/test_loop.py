@@ -3,7 +3,6 @@
 The geometry here is a scripted test double (it says which refinements fail and why), so each
 branch of the loop can be driven on purpose; the Gripper-2D tests exercise the real geometry.
 """
-import pytest
 
 from interlayer.abstraction import abstract
 from interlayer.domain import ActionSpec, DomainSpec, Problem, Skolem

@@ -3,7 +3,6 @@ import copy
 import json
 import shutil
 
-import pytest
 
 from interlayer.api import validate
 

@@ -3,7 +3,6 @@ the domain drawing convention (draw_scene / animation_frames) and headless-Chrom
 from __future__ import annotations
 
 import json
-import math
 import re
 import shutil
 import subprocess

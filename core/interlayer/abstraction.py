@@ -59,11 +59,7 @@ class TaskModel:
         return self._by_type[typ]
 
     def is_subtype(self, t: str, parent: str) -> bool:
-        while t is not None:
-            if t == parent:
-                return True
-            t = self.types.get(t)
-        return False
+        return _subtype(self.types, t, parent)
 
     def binding(self, step: GroundStep) -> dict:
         params, _, _ = self.full_actions[step.action]
@@ -101,7 +97,7 @@ def _check_types(spec, typ, where):
         raise DomainError(f"Unknown type '{typ}' in {where}; declare it in the domain's types.")
 
 
-def _check_formula(spec, f, where, variables):
+def _check_formula(spec, f, where):
     for pred, _ in logic.atoms_with_polarity(f):
         if pred.name not in spec.predicates:
             raise DomainError(f"Unknown predicate '{pred.name}' in {where}; declare it in the domain.")
@@ -144,11 +140,11 @@ def abstract(problem: Problem) -> TaskModel:
         for _, t in act.parameters:
             _check_types(spec, t, where)
         pre, eff = logic.parse(act.precondition), logic.parse(act.effect)
-        _check_formula(spec, pre, where, act.parameters)
-        _check_formula(spec, eff, where, act.parameters)
+        _check_formula(spec, pre, where)
+        _check_formula(spec, eff, where)
         for kind, templates in act.learn.items():
             for tpl in templates:
-                _check_formula(spec, logic.parse(tpl), f"{where}, learn[{kind!r}]", act.parameters)
+                _check_formula(spec, logic.parse(tpl), f"{where}, learn[{kind!r}]")
         full_actions[act.name] = (act.parameters, pre, eff)
         for p, pol in logic.atoms_with_polarity(pre):
             occurrences.setdefault(p.name, set()).add(pol)
@@ -156,7 +152,7 @@ def abstract(problem: Problem) -> TaskModel:
             added.setdefault(p.name, set()).add(pol)
         task_actions[act.name], roles[act.name] = _task_view(spec, act, pre, eff, skolem_preds)
     goal = logic.parse(problem.goal)
-    _check_formula(spec, goal, "the goal", ())
+    _check_formula(spec, goal, "the goal")
     for p, pol in logic.atoms_with_polarity(goal):
         occurrences.setdefault(p.name, set()).add(pol)
 

@@ -114,7 +114,7 @@ class InterfaceLayer:
         self.plan = []
         plan = self.call_task_planner(init, 0)  # line 2
         if plan is None:
-            return self._not_solved("the task planner found no plan for the initial state")
+            return "unsolvable", "the task planner found no plan for the initial state", None
         self.plan, states = plan, self.progress_all(init, plan)
         world0 = self.geometry.initial_world()
         step, prefix, world = 0, {}, world0  # line 3
@@ -167,9 +167,6 @@ class InterfaceLayer:
                                 reason="MaxTrajCount reached" if traj_count >= self.settings.max_traj_count
                                 else "no partial refinement led to a solvable state")
         return "timeout", f"the time limit of {self.settings.time_limit:g} s was reached before a refinement was found", None
-
-    def _not_solved(self, reason):
-        return "unsolvable", reason, None
 
 
 def _drain(gen):

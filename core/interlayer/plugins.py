@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import importlib.metadata
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Callable
 
 import pluggy
 
