@@ -25,9 +25,11 @@ def main():
             cmd += ["--set", s]
         out = subprocess.run(cmd, capture_output=True, text=True).stdout
         data = json.loads(out)
+        data.setdefault("times", {})
         rows.append(data)
         print(f"seed {seed}: {data['status']:10s} total {data['times'].get('total', 0):6.2f} s, "
-              f"task-planner calls {data.get('task_planner_calls')}, replans {data.get('replans')}", file=sys.stderr)
+              f"task-planner calls {data.get('task_planner_calls')}, replans {data.get('replans')} {data.get('reason', '')}",
+              file=sys.stderr)
     solved = [r for r in rows if r["status"] == "solved"]
     keys = sorted({k for r in solved for k in r["times"]})
     summary = {"config": args.config, "overrides": args.set, "runs": len(rows), "solved": len(solved)}
