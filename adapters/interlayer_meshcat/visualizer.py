@@ -108,8 +108,10 @@ def _new_scene(title):
 
 
 def _camera(scene):
-    # a slightly tilted top view: 2D-ish domains read well, 3D ones still look 3D
-    return scene.auto_camera(direction=(0.0, -0.5, 1.0), margin=0.95)
+    # a slightly tilted top view: 2D-ish domains read well, 3D ones still look 3D. A domain's
+    # draw_scene may prefer another viewing direction: scene.view_direction = (x, y, z).
+    direction = getattr(scene, "view_direction", None) or (0.0, -0.5, 1.0)
+    return scene.auto_camera(direction=direction, margin=0.95)
 
 
 def solution_scene(run_or_problem, trajectory, title="plan"):
