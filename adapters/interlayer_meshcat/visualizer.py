@@ -582,7 +582,8 @@ class _Explainer:
             elif kind == "dead_end":
                 html.append(f'<div class="ev dead">{t}<h3>Dead end at step {e.get("step")}</h3>The state with '
                             + ", ".join(f'<span class="fact">{escape(f)}</span>' for f in e.get("facts") or [])
-                            + " has no plan; the next partial refinement is tried.</div>")
+                            + (" timed out in the task planner" if e.get("status") == "timeout" else " has no plan")
+                            + "; the next partial refinement is tried.</div>")
             elif kind == "reset":
                 html.append(f'<div class="ev reset">{t}<h3>Reset (epoch {e.get("epoch")})</h3>'
                             f'{escape(e.get("reason") or "")} after {e.get("traj_count", "?")} failure(s): learned '

@@ -36,7 +36,8 @@ def progress_printer(verbose: bool):
         elif kind == "replan":
             log(f"{t} replanned from step {e['fail_step']}, kept a prefix of {len(e['prefix'])} action(s)")
         elif kind == "dead_end":
-            log(f"{t} the updated state at step {e['step']} has no plan; trying the next partial refinement")
+            why = "the task planner timed out on it" if e.get("status") == "timeout" else "it has no plan"
+            log(f"{t} the updated state at step {e['step']} is a dead end ({why}); trying the next partial refinement")
         elif kind == "reset":
             log(f"{t} reset (epoch {e['epoch']}): {e['reason']}; learned facts cleared, generators reseeded")
         elif kind == "refined":

@@ -60,6 +60,7 @@ class InterfaceLayer:
                         plan=plan_json(res.plan), time=round(res.time, 4), reason=res.reason)
         if res.status == "error":
             raise RuntimeError(res.reason)
+        self.last_task_status = res.status
         return list(res.plan) if res.status == "solved" else None
 
     def make_generator(self, index: int, step: GroundStep, world) -> PoseGenerator:
@@ -156,7 +157,8 @@ class InterfaceLayer:
                     self.trace.emit("replan", fail_step=f, prefix=plan_json(old[:f]), new_plan=plan_json(new_plan),
                                     plan=plan_json(self.plan))
                     break
-                self.trace.emit("dead_end", step=f, facts=[logic.atom_str(a) for a in sorted(facts)])
+                self.trace.emit("dead_end", step=f, facts=[logic.atom_str(a) for a in sorted(facts)],
+                                status=self.last_task_status)
                 if traj_count >= self.settings.max_traj_count or self._out_of_time():
                     break
             if new_plan is None and not self._out_of_time():  # lines 14-17
