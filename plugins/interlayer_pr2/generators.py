@@ -18,7 +18,7 @@ import numpy as np
 
 from interlayer.refine import Candidate, Infeasible
 
-from .scene import REST_GAP, TABLE_TOP
+from .scene import REST_GAP, table_top
 from .world import LIFT, PRE_GRASP, pose4, rz, trans, wrap
 
 LINE_STEP = 0.05  # m between IK waypoints of straight-line approaches
@@ -222,7 +222,7 @@ def _spots(problem, world, obj, loc, rng, tries):
     o = geometry.specs[obj]
     xmin, xmax, ymin, ymax = geometry.layout.regions[loc]
     m = (o.size[0] if o.shape == "cylinder" else 0.5 * math.hypot(o.size[0], o.size[1])) + 0.01
-    z = TABLE_TOP + o.height / 2 + REST_GAP
+    z = table_top(geometry.layout) + o.height / 2 + REST_GAP
     others = {k: v for k, v in geometry.layout.regions.items() if k not in (loc, "table")}
     for _ in range(tries):
         x, y = rng.uniform(xmin + m, xmax - m), rng.uniform(ymin + m, ymax - m)

@@ -1,12 +1,20 @@
 """Registers the PR2 pick-and-place domain and its pose generators."""
 from interlayer import hookimpl
 
-PARAMS = {"goal": "hold", "grasps": ["side"], "target_radius": 0.035, "clutter": 0}
+PARAMS = {"scene": "cubby", "goal": "hold", "grasps": ["side"], "target_radius": 0.035, "clutter": 0, "objects": 15}
 
 
 def make_problem(params, seed):
     from interlayer.domain import Problem
     from interlayer.errors import UserError
+
+    scene = params.get("scene", "cubby")
+    if scene == "clutter":
+        from .clutter import make_clutter_problem
+
+        return make_clutter_problem(params, seed)
+    if scene != "cubby":
+        raise UserError(f"problem.scene must be \"cubby\" (pr2_pick) or \"clutter\" (Clutter-N), got {scene!r}.")
 
     from .domain import DOMAIN
     from .scene import make_layout
@@ -55,14 +63,28 @@ def make_problem(params, seed):
 @hookimpl
 def interlayer_register_domains(registry):
     registry.add("pr2", make_problem,
-                 "a PR2 picks a cylinder from a cubby whose mouth another cylinder blocks (Fig. 3 actions, both arms)",
+                 "a PR2 picks a cylinder from a cubby whose mouth another cylinder blocks (Fig. 3 actions, both arms); "
+                 "scene = \"clutter\": the paper's cluttered table (Clutter-N, objects = N)",
                  params=PARAMS)
 
 
 @hookimpl
 def interlayer_register_pose_generators(registry):
-    from . import generators
+    from . import clutter, generators
 
     registry.add("pr2:move_base", generators.move_base, "base poses in an annulus around the object or put-down spot")
     registry.add("pr2:pick", generators.pick, "side (and top) grasps with pre-grasp and raise waypoints, by IK")
     registry.add("pr2:place", generators.place, "the put-down spot chosen by move_base and nearby variants, by IK")
+    registry.add("pr2c:pick", clutter.pick, "clutter: base pose + side grasp (move_base folded in), fewest objects in the way first")
+    registry.add("pr2c:place", clutter.place, "clutter: a free table spot far from the target and others + base pose, by IK")
+
+
+@hookimpl
+def interlayer_load_problem(path, params, seed):
+    """pybullet-planning JSON problem files (bodies / robots / task); None for anything else."""
+    from .clutter import load_pybullet_json, looks_like_pybullet_json
+
+    data = looks_like_pybullet_json(path)
+    if data is None:
+        return None
+    return load_pybullet_json(path, data, params, seed)

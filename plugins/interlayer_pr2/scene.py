@@ -57,6 +57,15 @@ class Layout:
         return next(o for o in self.fixed + self.objects if o.name == name)
 
 
+def table_top(layout) -> float:
+    """The support surface height of a layout (the cubby scene's TABLE_TOP unless the scene says otherwise)."""
+    return float(layout.extra.get("table_top", TABLE_TOP))
+
+
+def base_limits(layout):
+    return layout.extra.get("base_limits", BASE_LIMITS)
+
+
 def _radius(o: ObjectSpec) -> float:
     return o.size[0] if o.shape == "cylinder" else 0.5 * math.hypot(o.size[0], o.size[1])
 

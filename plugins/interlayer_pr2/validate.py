@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .scene import REST_GAP, TABLE_TOP
+from .scene import REST_GAP, table_top
 from .world import RES_ARM, RES_BASE
 
 FINE_ARM, FINE_BASE = RES_ARM / 5, RES_BASE / 5
@@ -93,7 +93,8 @@ def validate_trajectory(geometry, plan, trajectory) -> list[str]:
                 upright = P[2, 2] > math.cos(math.radians(2))
                 xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
                 on_table = xmin <= P[0, 3] <= xmax and ymin <= P[1, 3] <= ymax
-                if not (upright and on_table and TABLE_TOP <= bottom <= TABLE_TOP + REST_GAP + 0.005):
+                top = table_top(geometry.layout)
+                if not (upright and on_table and top <= bottom <= top + REST_GAP + 0.005):
                     return errors + [f"{at}: {obj} is released at {np.round(P[:3, 3], 3).tolist()}, not resting upright "
                                      f"on the table"]
                 held = {a: v for a, v in world.held.items() if a != arm}  # release = open the gripper + detach

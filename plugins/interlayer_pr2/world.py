@@ -21,7 +21,7 @@ from interlayer.motion import ConfigSpace, InterpolatingPlanner, MotionQuery
 from interlayer.refine import Failure, StepOutcome
 from interlayer.trace import Stats
 
-from .scene import BASE_LIMITS, Layout
+from .scene import Layout, base_limits
 
 ARMS = ("left", "right")
 RES_ARM = 0.02  # rad between collision checks when planning an arm (the validator checks 5x finer)
@@ -92,7 +92,7 @@ class PR2Geometry:
 
         self.layout = layout
         self.padding = padding
-        self.robot = PR2(base_limits=BASE_LIMITS)
+        self.robot = PR2(torso_height=layout.extra.get("torso_height", 0.2), base_limits=base_limits(layout))
         self.cw = CollisionWorld(self.robot)
         for o in layout.fixed + layout.objects:
             T = pose4(*o.pose)
@@ -110,7 +110,7 @@ class PR2Geometry:
         self.stats = Stats()
         self.refs = {}  # reference name -> (skolem, args): filled by make_problem
         self._synced = None
-        lo, hi = BASE_LIMITS
+        lo, hi = base_limits(layout)
         self.base_space = ConfigSpace("se2", (lo[0], hi[0], -math.pi), (lo[1], hi[1], math.pi), (False, False, True), RES_BASE)
         # Arm spaces: the continuous forearm / wrist roll joints are treated as bounded to [-pi, pi]
         # without wrap-around, so that every interpolation agrees: OMPL's (a RealVectorStateSpace
@@ -163,6 +163,12 @@ class PR2Geometry:
         """Make the collision world match ``world``; returns its configuration."""
         q = self.config(world)
         if world is self._synced:
+            return q
+        last = self._synced
+        if last is not None and world.objects is last.objects and world.held is last.held:
+            # the same resting objects and grasps (World.with_arm / with_gripper / replace(base=...)
+            # share these dicts): nothing in the collision world changes
+            self._synced = world
             return q
         cw = self.cw
         want = {o: (a, G) for a, (o, G) in world.held.items()}
@@ -248,6 +254,9 @@ class PR2Geometry:
     def refine_step(self, step, world: World, candidate, motion) -> StepOutcome:
         acc = [0.0]
         try:
+            if step.action in ("pick", "place") and len(candidate.waypoints) == 3:
+                # move_base folded into pick / place (the clutter encoding): (base, arm path 1, arm path 2)
+                return self._drive_then(step, world, candidate, motion, acc)
             if step.action == "move_base":
                 return self._move_base(step, world, candidate, motion, acc)
             if step.action == "pick":
@@ -257,6 +266,70 @@ class PR2Geometry:
             raise ValueError(step.action)
         finally:
             self.stats.add_time("collision_checking", acc[0])
+
+    def _drive_then(self, step, world, cand, motion, acc):
+        base = tuple(float(v) for v in cand.waypoints[0])
+        inner = type(cand)(tuple(cand.waypoints[1:]), cand.values, cand.label)
+        w = replace(world, base=base)
+        if step.action == "pick":  # a blocked approach fails the step whatever the motions: check it first (cheap)
+            blockers = self._movables_on_line(w.with_gripper(step.args[1], "open"), step.args[1], inner.waypoints[0], acc)
+            blockers.discard(step.args[0])
+            if blockers:
+                return StepOutcome(False, failure=Failure("obstruction", tuple(sorted(blockers)),
+                                                          "pick approach: blocked by " + ", ".join(sorted(blockers))))
+        segs = []
+        if self.base_space.distance(np.asarray(world.base, float), np.asarray(base, float)) > 1e-9:
+            res = self._plan(motion, self.base_query(world, world.base, base, f"{step.action} drive", acc), "base", "base",
+                             segs, _holding(world), world, acc)
+            if not res.ok:
+                return _failure(res, f"{step.action} drive", step.args[0] if step.action == "pick" else None)
+        if step.action == "place" and "tloc" in cand.values:
+            obj, P = cand.values["tloc"]
+            w = replace(w, tloc={obj: np.asarray(P)})
+        out = self._pick(step, w, inner, motion, acc) if step.action == "pick" else self._place(step, w, inner, motion, acc)
+        if out.ok:
+            out.segments = segs + out.segments
+        elif out.failure is not None and out.failure.kind == "obstruction" and "transit" in out.failure.detail:
+            out = self._fewer_blockers(step, w, inner, out, acc)
+        return out
+
+    def _movables_on_line(self, w, arm, path, acc) -> set:
+        """Movables the arm touches along the piecewise-straight ``path`` (at the planning resolution)."""
+        q = self.sync(w)
+        group = self.robot.group(f"{arm}_arm")
+        held = {o for o, _ in w.held.values()}
+        t0 = time.perf_counter()
+        hit = set()
+        for v in self.arm_space[arm].densify([np.asarray(p, float) for p in path]):
+            hit |= self.cw.colliding_movables(group.set(q, v))
+        acc[0] += time.perf_counter() - t0
+        return hit - held
+
+    def _fewer_blockers(self, step, w, cand, out, acc):
+        """A randomized planner's relaxed path wanders through the clutter and names many blockers; if
+        the straight joint-space line to the transit's goal avoids fixed obstacles and runs into fewer
+        movables, report those instead (they suffice to clear a path)."""
+        arm = step.args[1]
+        goal = cand.waypoints[0][0]
+        q = self.sync(w)
+        group = self.robot.group(f"{arm}_arm")
+        static = self.cw.checker_for(f"{arm}_arm", q, movables=False)
+        held = {o for o, _ in w.held.values()}
+        blockers = set()
+        t0 = time.perf_counter()
+        try:
+            for v in self.arm_space[arm].densify([np.asarray(w.arms[arm], float), np.asarray(goal, float)]):
+                if not (group.within_bounds(v) and static(v)):
+                    return out
+                blockers |= self.cw.colliding_movables(group.set(q, v)) - held
+        finally:
+            acc[0] += time.perf_counter() - t0
+        blockers.discard(step.args[0] if step.action == "pick" else None)
+        if blockers and len(blockers) < len(out.failure.objects):
+            return StepOutcome(False, failure=Failure("obstruction", tuple(sorted(blockers)),
+                                                      out.failure.detail.split(":")[0] + ": the straight line is blocked by "
+                                                      + ", ".join(sorted(blockers))))
+        return out
 
     def _plan(self, planner, query, kind, group, segments, holding, world=None, acc=None, retries=2):
         """Plan; a path is then re-checked at the validator's resolution (RES / 5) and planned again
