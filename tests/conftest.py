@@ -22,3 +22,13 @@ def gripper_example():
 
 def pytest_report_header(config):
     return f"shared/ benchmarks: {'present' if SHARED.exists() else 'absent (tests that read them skip)'}"
+
+
+def write_pages(out_dir):
+    """plan.html and explain.html for a run folder, through the CLI (beside the folder)."""
+    from interlayer.cli import main
+
+    plan, explain = out_dir.parent / "plan.html", out_dir.parent / "explain.html"
+    assert main(["viz", str(out_dir), "-o", str(plan)]) == 0
+    assert main(["explain", str(out_dir), "-o", str(explain)]) == 0
+    return plan, explain

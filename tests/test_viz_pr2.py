@@ -11,6 +11,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # tests/browser.py
 
 import browser  # noqa: E402
+from conftest import write_pages
 
 pytest.importorskip("meshcat")
 pytest.importorskip("pinocchio")
@@ -44,12 +45,7 @@ def run(out_dir):
 
 @pytest.fixture(scope="module")
 def pages(out_dir):
-    from interlayer.cli import main
-
-    plan, explain = out_dir.parent / "plan.html", out_dir.parent / "explain.html"
-    assert main(["viz", str(out_dir), "-o", str(plan)]) == 0
-    assert main(["explain", str(out_dir), "-o", str(explain)]) == 0
-    return plan, explain
+    return write_pages(out_dir)
 
 
 @pytest.fixture(scope="module")
