@@ -1,6 +1,6 @@
 """Tests for interlayer_meshcat: self-contained animated HTML scenes.
 
-Run: PYTHONPATH=/work/main/adapters:/work/main/tests python -m pytest tests/adapters -q -k meshcat
+Run: .venv/bin/python -m pytest tests/adapters -q -k meshcat
 Browser tests need Debian's `chromium` (skipped otherwise).
 """
 
