@@ -32,3 +32,14 @@ def write_pages(out_dir):
     assert main(["viz", str(out_dir), "-o", str(plan)]) == 0
     assert main(["explain", str(out_dir), "-o", str(explain)]) == 0
     return plan, explain
+
+
+def solved_run(tmp_path_factory, example, name):
+    """Solve an example with the real planners and write its OUT_DIR (for page and validator tests)."""
+    from interlayer import api
+
+    out = tmp_path_factory.mktemp(name) / name
+    result = api.solve(str(example))
+    assert result.solved, result.reason
+    api.write_outputs(result, out)
+    return out

@@ -14,7 +14,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # tests/browser.py
 
 import browser  # noqa: E402
-from conftest import write_pages
+from conftest import solved_run, write_pages
 
 pytest.importorskip("meshcat")
 
@@ -27,13 +27,7 @@ ALLOWED_URLS = {"http://www.w3.org/1999/xhtml", "ws://${location.host}"}
 
 @pytest.fixture(scope="module")
 def out_dir(tmp_path_factory):
-    from interlayer import api
-
-    out = tmp_path_factory.mktemp("run") / "g1"
-    result = api.solve(str(EXAMPLE))
-    assert result.solved
-    api.write_outputs(result, out)
-    return out
+    return solved_run(tmp_path_factory, EXAMPLE, "g1")
 
 
 @pytest.fixture(scope="module")

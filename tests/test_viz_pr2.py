@@ -11,7 +11,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # tests/browser.py
 
 import browser  # noqa: E402
-from conftest import write_pages
+from conftest import solved_run, write_pages
 
 pytest.importorskip("meshcat")
 pytest.importorskip("pinocchio")
@@ -25,13 +25,7 @@ RED_RGB = (230, 31, 31)  # the visualizer's OBSTRUCTING colour
 
 @pytest.fixture(scope="module")
 def out_dir(tmp_path_factory):
-    from interlayer import api
-
-    out = tmp_path_factory.mktemp("pr2viz") / "hold"
-    result = api.solve(str(EXAMPLE))
-    assert result.solved
-    api.write_outputs(result, out)
-    return out
+    return solved_run(tmp_path_factory, EXAMPLE, "hold")
 
 
 @pytest.fixture(scope="module")

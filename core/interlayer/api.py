@@ -166,7 +166,21 @@ def validate(out_dir, host: PluginHost | None = None) -> list[str]:
     if why:
         violations.append(f"task plan: {why}")
     if not (out / "trajectory.json").exists():
-        violations.append("no trajectory.json: the geometric refinement cannot be checked")
-    elif hasattr(problem.geometry, "validate"):
-        violations += problem.geometry.validate(plan, json.loads((out / "trajectory.json").read_text()))
+        return violations + ["no trajectory.json: the geometric refinement cannot be checked"]
+    trajectory = json.loads((out / "trajectory.json").read_text())
+    mismatch = _steps_mismatch(plan, trajectory.get("steps", []))
+    if mismatch:
+        return violations + [mismatch]
+    if hasattr(problem.geometry, "validate"):
+        violations += problem.geometry.validate(plan, trajectory)
     return violations
+
+
+def _steps_mismatch(plan, steps) -> str:
+    """The trajectory must hold one entry per plan step, for the same action: '' if it does."""
+    if len(steps) != len(plan):
+        return f"the trajectory has {len(steps)} steps but the plan has {len(plan)}"
+    for i, (step, data) in enumerate(zip(plan, steps)):
+        if data.get("action") != step.action or list(data.get("args", [])) != list(step.args):
+            return f"step {i} {step}: the trajectory's step is {data.get('action')}({', '.join(data.get('args', []))})"
+    return ""

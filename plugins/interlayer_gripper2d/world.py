@@ -104,6 +104,7 @@ class Gripper2DGeometry:
 
     def __init__(self, layout: Layout, margin: float = 0.004):
         self.layout = layout
+        self._walls = frozenset(layout.walls)
         self.scene = CollisionScene(margin)  # planning keeps 4 mm away; the validator uses no margin
         for name, (cx, cy, sx, sy) in layout.walls.items():
             self.scene.add(name, [Shape("box", (sx, sy, HEIGHT), np.eye(4))], planar(cx, cy, 0), movable=False)
@@ -152,7 +153,7 @@ class Gripper2DGeometry:
             SPACE, np.asarray(start, float), np.asarray(goal, float),
             is_valid=lambda q: in_table(q) and not self.hits(world, q),
             is_valid_static=lambda q: in_table(q) and not self.hits(world, q, movables=False),
-            movables_at=lambda q: self.hits(world, q, first=False) - {n for n in self.layout.walls},
+            movables_at=lambda q: self.hits(world, q, first=False) - self._walls,
             label=label,
         )
 
