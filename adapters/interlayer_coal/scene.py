@@ -118,6 +118,27 @@ class CollisionScene:
                     break
         return found
 
+    def distances(self, body: Body, pose: np.ndarray, margin: float, skip=(), movables: bool = True) -> dict:
+        """Signed distances (negative when penetrating; the scene's own margin is not subtracted) from
+        each shape of ``body`` at ``pose`` to each scene shape closer than ``margin``:
+        ``{(body shape index, object name, scene shape index): distance}``."""
+        if self._index is None:
+            self._build_index()
+        owners, objects, centres, radii = self._index
+        mine = np.array(body.place(pose))
+        reach = (np.array(body.radii)[:, None] + radii[None, :] + margin) ** 2
+        d = mine[:, None, :] - centres[None, :, :]
+        close = np.nonzero(np.einsum("ijk,ijk->ij", d, d) <= reach)
+        request, out = coal.DistanceRequest(), {}
+        for i, j in zip(*close):
+            name = owners[j]
+            if name in skip or (not movables and self.movable[name]):
+                continue
+            dist = coal.distance(body.objects[i], objects[j], request, coal.DistanceResult())
+            if dist < margin:
+                out[int(i), name, int(j)] = float(dist)
+        return out
+
     def bodies_collide(self, a: Body, pose_a, b: Body, pose_b) -> bool:
         a.place(pose_a)
         b.place(pose_b)

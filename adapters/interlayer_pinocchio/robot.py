@@ -324,6 +324,23 @@ class PR2:
         pin.forwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
         return pin.updateFramePlacement(self.model, self.data, fid).homogeneous.copy()
 
+    def tool_jacobian(self, q, arm: str) -> tuple[np.ndarray, np.ndarray]:
+        """(world pose 4x4, 6 x 7 Jacobian) of ``arm``'s tool frame at ``q``: the frame's linear and
+        angular velocity in world axes per arm-joint velocity."""
+        fid = self._tool_frames[arm]
+        J = pin.computeFrameJacobian(self.model, self.data, np.asarray(q, dtype=float), fid,
+                                     pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        cols = [self.model.joints[j].idx_v for j in self.groups[f"{arm}_arm"].joint_ids]
+        return self.data.oMf[fid].homogeneous.copy(), J[:, cols]
+
+    def velocity_limits(self, group: str) -> np.ndarray:
+        """The URDF's velocity limit of each joint of ``group`` (rad/s or m/s; inf if none)."""
+        lim = []
+        for j in self.group(group).joint_ids:
+            joint = self.model.joints[j]
+            lim += list(self.model.velocityLimit[joint.idx_v:joint.idx_v + joint.nv])
+        return np.array([v if v < 1e300 else np.inf for v in lim])
+
     @staticmethod
     def base_pose(q) -> np.ndarray:
         """World pose (4x4) of ``base_footprint`` (z = 0) from the planar root entries of ``q``."""

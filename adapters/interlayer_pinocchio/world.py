@@ -122,6 +122,7 @@ class CollisionWorld:
         self._variants: dict[tuple, _Variant] = {}
         self._slots: list[_Slot] = []  # most recently used first
         self._request = coal.CollisionRequest()
+        self._local_spheres = {}  # id(geometry) -> (AABB centre, radius, geometry)
         self._tool_joint = {arm: robot.model.frames[robot.model.getFrameId(robot.tool_frame(arm))].parentJoint
                             for arm in ARMS}
         names = [g.name for g in robot.collision_model.geometryObjects]
@@ -287,6 +288,106 @@ class CollisionWorld:
             return not compute(model, data, slot.manager, q, True)
 
         return is_valid
+
+    def clearances(self, q, group: str, margin: float, movables: bool = True,
+                   ignore: Iterable[str] = frozenset()) -> dict[str, tuple[float, np.ndarray]]:
+        """Signed distance and its gradient (w.r.t. ``group``'s vector) for every pair of (a body
+        ``group`` moves: robot link or held object, an environment object) closer than ``margin``:
+        ``{"link|object": (distance, gradient)}``. Robot links are taken as their convex hulls
+        (signed distances need convex shapes); self pairs are left to the collision checks."""
+        if self._needs_build:
+            self._build()
+        q = _as_q(q)
+        model, data, gm = self._model, self._data, self._gm
+        g = self.robot.group(group)
+        cols = self._group_columns(group)
+        pin.computeJointJacobians(model, data, q)  # also forward kinematics
+        moving = self.robot.moving_joints(group)
+        skip = frozenset(ignore)
+        bodies, obstacles = [], []
+        for obj in self._objects.values():
+            if obj.held_by is not None:
+                if self._tool_joint[obj.held_by] in moving:
+                    bodies.append((obj.name, obj.geometry, self._tool_joint[obj.held_by],
+                                   gm.geometryObjects[obj.gid].placement, None))
+            elif obj.name not in skip and (movables or not obj.movable):
+                obstacles.append((obj.name, obj.geometry, obj.pose, None))
+        for gid, hull in self._hulls().items():
+            go = gm.geometryObjects[gid]
+            if go.parentJoint in moving:
+                bodies.append((self._link_names[gid], hull, go.parentJoint, go.placement, gid))
+            else:  # the rest of the robot: an obstacle to the links that may collide with it (SRDF)
+                obstacles.append((self._link_names[gid], hull, data.oMi[go.parentJoint] * go.placement, gid))
+        if not bodies or not obstacles:
+            return {}
+        body_poses = [data.oMi[joint] * placement for _, _, joint, placement, _ in bodies]
+        bc, br = self._spheres([b[1] for b in bodies], body_poses)
+        oc, orad = self._spheres([o[1] for o in obstacles], [o[2] for o in obstacles])
+        gap = np.linalg.norm(bc[:, None] - oc[None], axis=2) - br[:, None] - orad[None]
+        pairs = self._self_pairs()
+        request, out, jacobians = coal.DistanceRequest(), {}, {}
+        for i, j in zip(*np.nonzero(gap < margin)):
+            name, geom, joint, _, gid = bodies[i]
+            oname, ogeom, opose, ogid = obstacles[j]
+            if ogid is not None and (gid is None or (min(gid, ogid), max(gid, ogid)) not in pairs):
+                continue
+            result = coal.DistanceResult()
+            d = coal.distance(geom, _transform(body_poses[i]), ogeom, _transform(opose), request, result)
+            if d >= margin:
+                continue
+            if joint not in jacobians:
+                jacobians[joint] = pin.getJointJacobian(model, data, joint, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:, cols]
+            J = jacobians[joint]
+            r = result.getNearestPoint1() - data.oMi[joint].translation
+            J_point = J[:3] - pin.skew(r) @ J[3:]  # velocity of the body's nearest point
+            out[f"{name}|{oname}"] = (float(d), -result.normal @ J_point)
+        if group == "base":  # the planar joint's velocity is in the base frame; the vector is (x, y, theta)
+            c, s_ = q[2], q[3]
+            R = np.array([[c, s_, 0.0], [-s_, c, 0.0], [0.0, 0.0, 1.0]])
+            out = {k: (d, grad @ R) for k, (d, grad) in out.items()}
+        assert all(len(grad) == g.dof for _, grad in out.values())
+        return out
+
+    def _group_columns(self, group: str) -> list[int]:
+        cols = []
+        for j in self.robot.group(group).joint_ids:
+            joint = self._model.joints[j]
+            cols += list(range(joint.idx_v, joint.idx_v + joint.nv))
+        return cols
+
+    def _spheres(self, geometries, poses):
+        """World centres (n x 3) and radii of spheres around ``geometries`` at ``poses`` (local AABBs)."""
+        centres, radii = np.empty((len(poses), 3)), np.empty(len(poses))
+        for k, (geom, pose) in enumerate(zip(geometries, poses)):
+            local = self._local_spheres.get(id(geom))
+            if local is None or local[2] is not geom:
+                box = geom.aabb_local
+                local = self._local_spheres[id(geom)] = ((box.min_ + box.max_) / 2,
+                                                         float(np.linalg.norm(box.max_ - box.min_) / 2), geom)
+            centres[k] = pose.rotation @ local[0] + pose.translation
+            radii[k] = local[1]
+        return centres, radii
+
+    def _self_pairs(self) -> frozenset:
+        """The robot's self-collision pairs the SRDF keeps, as (smaller, larger) geometry ids."""
+        cache = self.robot.__dict__.setdefault("_self_pairs", [])
+        if not cache:
+            cache.append(frozenset((min(p.first, p.second), max(p.first, p.second))
+                                   for p in self.robot.collision_model.collisionPairs))
+        return cache[0]
+
+    def _hulls(self) -> dict:
+        """Convex hulls of the robot's collision meshes (built once per robot)."""
+        cache = self.robot.__dict__.setdefault("_hulls", {})
+        if not cache:
+            for gid, go in enumerate(self.robot.collision_model.geometryObjects):
+                geom = go.geometry
+                if isinstance(geom, coal.BVHModelBase):
+                    geom.buildConvexHull(True, "Qt")
+                    geom = geom.convex
+                geom.computeLocalAABB()
+                cache[gid] = geom
+        return cache
 
     def objects_overlap(self, name: str, pose, ignore: Iterable[str] = frozenset()) -> set[str]:
         """Objects (not held, not ignored) that object ``name`` placed at ``pose`` would touch."""

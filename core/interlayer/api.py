@@ -63,13 +63,18 @@ def make_planners(host: PluginHost, config: dict, stats: Stats):
     p = config["planner"]
     task_comp = host["task_planners"].get(p["task"])
     task = task_comp.factory(dict(config["task_planner"].get(p["task"], {})))
-    motion_comp = host["motion_planners"].get(p["motion"])
-    family = p["motion"].split(":")[0]
+    return task, make_motion_planner(host, config, p["motion"], stats)
+
+
+def make_motion_planner(host: PluginHost, config: dict, name: str, stats: Stats):
+    """The motion planner ``name`` with ``[motion_planner]`` options and its family's section
+    (e.g. ``[motion_planner.trajopt]``)."""
+    comp = host["motion_planners"].get(name)
     options = {k: v for k, v in config["motion_planner"].items() if not isinstance(v, dict)}
-    options.update(config["motion_planner"].get(family, {}))
-    motion = motion_comp.factory(options)
+    options.update(config["motion_planner"].get(name.split(":")[0], {}))
+    motion = comp.factory(options)
     motion.stats = stats
-    return task, motion
+    return motion
 
 
 def generators_for(host: PluginHost, model: TaskModel, config: dict) -> dict:
@@ -101,6 +106,8 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
     trace.emit("start", problem=problem.name, references=len(model.references), config=config)
     if hasattr(problem.geometry, "stats"):
         problem.geometry.stats = stats
+    if hasattr(problem.geometry, "cartesian"):  # the domain plans straight-line end-effector segments
+        problem.geometry.cartesian = make_motion_planner(host, config, p["cartesian"], stats)
     layer = InterfaceLayer(model, task, motion, generators_for(host, model, config), translators, settings, trace, stats)
     result = layer.solve()
     result.config = config

@@ -11,6 +11,7 @@ from .errors import UserError, closest
 PLANNER_DEFAULTS = {
     "task": "fast-downward",
     "motion": "ompl:RRTConnect",
+    "cartesian": "interpolate",  # straight end-effector segments (approach, retreat): or "ik:cartesian"
     "seed": 0,
     "time_limit": 120.0,
     "task_timeout": 60.0,

@@ -62,10 +62,28 @@ class ConfigSpace:
         return out
 
 
+@dataclass(frozen=True)
+class Clearance:
+    """Signed distance (m, negative when penetrating) from a moving body to one obstacle, and its
+    gradient with respect to the configuration (None: the planner takes finite differences)."""
+
+    distance: float
+    gradient: np.ndarray | None = None
+
+
 @dataclass
 class MotionQuery:
     """One motion-planning problem. ``is_valid`` checks everything; ``is_valid_static`` ignores
-    movable objects; ``movables_at`` names the movable objects in collision at a configuration."""
+    movable objects; ``movables_at`` names the movable objects in collision at a configuration.
+
+    Optional, for planners that need more than collision checks:
+
+    * ``clearances(q, movables, margin)``: ``{pair name: Clearance}`` for every (moving body,
+      obstacle) pair closer than ``margin`` at ``q`` (movable obstacles only if ``movables``), used by
+      optimising planners (``trajopt``);
+    * ``tool(q)``: ``(pose, jacobian)`` of the end effector: its 4x4 world pose and the 6 x dim
+      Jacobian of its (linear, angular) velocity in world axes, used by Cartesian planners.
+    """
 
     space: ConfigSpace
     start: np.ndarray
@@ -74,6 +92,11 @@ class MotionQuery:
     is_valid_static: Callable[[np.ndarray], bool]
     movables_at: Callable[[np.ndarray], set]
     label: str = ""
+    clearances: Callable[[np.ndarray, bool, float], dict] | None = None
+    tool: Callable[[np.ndarray], tuple] | None = None
+
+    def check(self, relaxed: bool) -> Callable[[np.ndarray], bool]:
+        return self.is_valid_static if relaxed else self.is_valid
 
 
 @dataclass(frozen=True)
@@ -102,13 +125,13 @@ class MotionPlanner:
         start_ok, goal_ok = query.is_valid(query.start), query.is_valid(query.goal)
         path = None
         if start_ok and goal_ok and space.within_bounds(query.goal):
-            path = self._plan(space, query.start, query.goal, query.is_valid, limit)
+            path = self._solve(query, False, limit)
         if path is not None:
             return MotionPlan(True, tuple(np.asarray(p, float) for p in path), time=time.perf_counter() - t0)
         # GetMPErrors: relax the movable objects and see what the relaxed path runs into.
         if not (query.is_valid_static(query.start) and query.is_valid_static(query.goal)):
             return MotionPlan(False, reason="start or goal collides with fixed obstacles", time=time.perf_counter() - t0)
-        relaxed = self._plan(space, query.start, query.goal, query.is_valid_static, limit)
+        relaxed = self._solve(query, True, limit)
         if relaxed is None:
             return MotionPlan(False, reason="no path even with movable objects ignored", time=time.perf_counter() - t0)
         blockers: set = set()
@@ -116,6 +139,11 @@ class MotionPlanner:
             blockers |= query.movables_at(q)
         reason = "blocked by " + ", ".join(sorted(blockers)) if blockers else "planner found no path in time"
         return MotionPlan(False, obstructions=tuple(sorted(blockers)), reason=reason, time=time.perf_counter() - t0)
+
+    def _solve(self, query: MotionQuery, relaxed: bool, time_limit: float):
+        """A path for ``query`` (movable objects ignored if ``relaxed``) or None. Planners that need
+        more of the query than its validity check (clearances, tool kinematics) override this."""
+        return self._plan(query.space, query.start, query.goal, query.check(relaxed), time_limit)
 
     def _plan(self, space: ConfigSpace, start, goal, is_valid, time_limit):  # pragma: no cover
         raise NotImplementedError

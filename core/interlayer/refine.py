@@ -53,7 +53,8 @@ class Infeasible(Exception):
 
 
 class Geometry(Protocol):
-    """The domain's refinement runtime."""
+    """The domain's refinement runtime. A geometry with a ``cartesian`` attribute gets the motion
+    planner named by ``planner.cartesian`` there, for its straight-line end-effector segments."""
 
     def initial_world(self) -> Any: ...
 

@@ -155,7 +155,25 @@ class Gripper2DGeometry:
             is_valid_static=lambda q: in_table(q) and not self.hits(world, q, movables=False),
             movables_at=lambda q: self.hits(world, q, first=False) - self._walls,
             label=label,
+            clearances=lambda q, movables, margin: self.clearances(world, q, movables, margin),
+            tool=_planar_tool,
         )
+
+    def clearances(self, world: World, q, movables: bool, margin: float) -> dict:
+        """Signed distances of the gripper (and held block) to the scene, less the planning margin;
+        no gradients (planners take finite differences in x, y, theta)."""
+        from interlayer.motion import Clearance
+
+        self.sync(world)
+        T = planar(*q)
+        skip = {world.held} if world.held else set()
+        margin += self.scene.margin
+        found = {("gripper", *k): d for k, d in self.scene.distances(self.gripper, T, margin, skip, movables).items()}
+        if world.held:
+            dx, dy, dth = self._grasp_offset(world)
+            held = self.scene.distances(self.held_body, T @ planar(dx, dy, dth), margin, skip, movables)
+            found.update({("held", *k): d for k, d in held.items()})
+        return {"|".join(map(str, k)): Clearance(d - self.scene.margin) for k, d in found.items()}
 
     def static_free(self, q) -> bool:
         return not self.scene.hits(self.gripper, planar(*q), movables=False, first=True)
@@ -203,6 +221,13 @@ class Gripper2DGeometry:
         from .validate import validate_trajectory
 
         return validate_trajectory(Gripper2DGeometry(self.layout, margin=0.0), plan, trajectory)
+
+
+def _planar_tool(q):
+    """The gripper frame is the configuration: pose, and the Jacobian of (linear, angular) velocity."""
+    J = np.zeros((6, 3))
+    J[0, 0] = J[1, 1] = J[5, 2] = 1.0
+    return planar(*q), J
 
 
 def _failure(plan, phase) -> StepOutcome:

@@ -1,10 +1,33 @@
 """Registers the PR2 pick-and-place domain and its pose generators."""
 from interlayer import hookimpl
 
-PARAMS = {"scene": "cubby", "goal": "hold", "grasps": ["side"], "target_radius": 0.035, "clutter": 0, "objects": 15}
+PARAMS = {"scene": "cubby", "goal": "hold", "grasps": ["side"], "target_radius": 0.035, "clutter": 0, "objects": 15,
+          # trajectory timing (TOPP-RA); arm velocities are the URDF's limits
+          "arm_acceleration": 1.5, "base_velocity": [0.5, 0.5, 1.0], "base_acceleration": [0.5, 0.5, 1.0]}
 
 
 def make_problem(params, seed):
+    problem = _make_problem(params, seed)
+    problem.geometry.layout.extra.update(_timing(params))
+    return problem
+
+
+def _timing(params):
+    """The timing keys, checked: positive numbers (three for the base: x, y, theta)."""
+    from interlayer.errors import UserError
+
+    out = {}
+    for key, n in (("arm_acceleration", 1), ("base_velocity", 3), ("base_acceleration", 3)):
+        value = params.get(key, PARAMS[key])
+        items = value if n > 1 and isinstance(value, list) else [value]
+        if len(items) != n or any(isinstance(v, bool) or not isinstance(v, (int, float)) or v <= 0 for v in items):
+            what = "a positive number" if n == 1 else "a list of three positive numbers (x, y, theta)"
+            raise UserError(f"problem.{key} must be {what}, got {value!r}.")
+        out[key] = value
+    return out
+
+
+def _make_problem(params, seed):
     from interlayer.domain import Problem
     from interlayer.errors import UserError
 

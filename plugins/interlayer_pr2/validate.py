@@ -14,6 +14,7 @@ from .world import RES_ARM, RES_BASE
 FINE_ARM, FINE_BASE = RES_ARM / 5, RES_BASE / 5
 POS_TOL, ROT_TOL = 2e-3, math.radians(2)
 START_TOL = 1e-6
+SPEED_TOL = 0.02  # relative slack on velocity and acceleration limits (discretisation of the timing)
 
 
 def _pose_close(A, B, pos=POS_TOL, rot=ROT_TOL):
@@ -155,9 +156,46 @@ def _check_motion(geometry, world, seg, at):
         if geometry.in_collision(w):
             pairs = geometry.cw.collision_pairs(geometry.sync(w))
             return world, f"{at}: collision {_pairs(pairs)} at {np.round(q, 3).tolist()}"
+    why = _check_timing(geometry, space, group_name, names, points, path, at)
+    if why:
+        return world, why
     last = path[-1]
     world = replace(world, base=tuple(float(v) for v in last)) if group_name == "base" else world.with_arm(arm, last)
     return world, None
+
+
+def _check_timing(geometry, space, group_name, names, points, path, at):
+    """Velocities and accelerations within the limits: the reported ones, and those implied by the
+    positions and time stamps (a chord run faster than the limit is too fast whatever is claimed)."""
+    vmax, amax = geometry.limits(group_name)
+    vtol, atol = vmax * (1 + SPEED_TOL) + 1e-6, amax * (1 + SPEED_TOL) + 1e-6
+    times = np.array([p["time_from_start"] for p in points], float)
+    for k in range(len(path) - 1):
+        step, dt = np.abs(space.difference(path[k], path[k + 1])), times[k + 1] - times[k]
+        if (step > 1e-9).any() and (dt <= 0 or (step > vtol * dt).any()):
+            j = int(np.argmax(step / vtol))
+            speed = "instantly" if dt <= 0 else f"at {step[j] / dt:.3f}"
+            return (f"{at}: too fast between points {k} and {k + 1}: {names[j]} moves {speed} "
+                    f"(limit {vmax[j]:.3f}) per second")
+    for key, limit, tol in (("velocities", vmax, vtol), ("accelerations", amax, atol)):
+        for k, p in enumerate(points):
+            if key not in p:
+                continue
+            value = np.abs(np.asarray(p[key], float))
+            if len(value) != len(names):
+                return f"{at}: point {k} has {len(value)} {key} for {len(names)} joints"
+            if (value > tol).any():
+                j = int(np.argmax(value / tol))
+                return f"{at}: point {k}: {names[j]} {key[:-3]}y {value[j]:.3f} exceeds its limit {limit[j]:.3f}"
+    if all("velocities" in p for p in points):
+        v = np.array([p["velocities"] for p in points], float)
+        for k in range(len(points) - 1):
+            dt = times[k + 1] - times[k]
+            if dt > 0 and (np.abs(v[k + 1] - v[k]) > atol * dt).any():
+                j = int(np.argmax(np.abs(v[k + 1] - v[k]) / atol))
+                return (f"{at}: {names[j]} changes velocity at {abs(v[k + 1][j] - v[k][j]) / dt:.3f} per s^2 between "
+                        f"points {k} and {k + 1} (limit {amax[j]:.3f})")
+    return None
 
 
 def _check_goal(geometry, world) -> list[str]:

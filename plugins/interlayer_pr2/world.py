@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from interlayer.motion import ConfigSpace, InterpolatingPlanner, MotionQuery
+from interlayer.motion import Clearance, ConfigSpace, InterpolatingPlanner, MotionQuery
 from interlayer.refine import Failure, StepOutcome
 from interlayer.trace import Stats
 
@@ -32,7 +32,11 @@ PADDING = 0.015
 RES_BASE = 0.01  # m / rad between collision checks when planning the base
 PRE_GRASP = 0.20  # back-off of the pre-grasp along the tool x axis (approach and retreat length)
 LIFT = 0.05  # raise after grasping / height above the put-down spot
-ARM_SPEED, BASE_SPEED = 0.6, 0.3  # rad/s, m/s: nominal, for the trajectory's time stamps
+# Timing (TOPP-RA): arm joints at most their URDF velocity limits; these defaults are overridden by the
+# problem keys of the same names (layout.extra).
+TIMING = {"arm_acceleration": 1.5,  # rad/s^2, every arm joint
+          "base_velocity": [0.5, 0.5, 1.0],  # m/s, m/s, rad/s (x, y, theta; the URDF gives none)
+          "base_acceleration": [0.5, 0.5, 1.0]}  # m/s^2, m/s^2, rad/s^2
 # First IK seed for reaching forward at table height (elbow up, measured typical solutions)
 REACH_SEED = {"left": (-0.4, -0.25, 3.3, -1.53, 2.75, -1.2, 0.0), "right": (0.4, -0.25, -3.3, -1.53, -2.75, -1.2, 0.0)}
 # Carry postures (tool position in the base frame, yaw away from the body): tried in order.
@@ -107,6 +111,7 @@ class PR2Geometry:
         self.specs = {o.name: o for o in layout.objects}
         self.fixed = {o.name for o in layout.fixed}
         self.approach = InterpolatingPlanner(name="interpolate")
+        self.cartesian = None  # planner.cartesian, set by the run: the approach and retreat lines' planner
         self.stats = Stats()
         self.refs = {}  # reference name -> (skolem, args): filled by make_problem
         self._synced = None
@@ -207,10 +212,14 @@ class PR2Geometry:
         def movables_at(v):
             return self.cw.colliding_movables(group.set(q, v)) - held
 
+        def tool(v):
+            return self.robot.tool_jacobian(group.set(q, v), arm)
+
         return MotionQuery(self.arm_space[arm], np.asarray(start, float), np.asarray(goal, float),
                            is_valid=self._timed(lambda v: group.within_bounds(v) and valid(v), acc),
                            is_valid_static=self._timed(lambda v: group.within_bounds(v) and static(v), acc),
-                           movables_at=self._timed(movables_at, acc), label=label)
+                           movables_at=self._timed(movables_at, acc), label=label,
+                           clearances=self._clearances(q, f"{arm}_arm", acc), tool=tool)
 
     def base_query(self, world, start, goal, label, acc) -> MotionQuery:
         q = self.sync(world)
@@ -222,7 +231,19 @@ class PR2Geometry:
                            is_valid=self._timed(lambda v: space.within_bounds(v) and valid(v), acc),
                            is_valid_static=self._timed(lambda v: space.within_bounds(v) and static(v), acc),
                            movables_at=self._timed(lambda v: self.cw.colliding_movables(group.set(q, v)), acc),
-                           label=label)
+                           label=label, clearances=self._clearances(q, "base", acc))
+
+    def _clearances(self, q, group_name, acc):
+        """Signed distances with analytic gradients (Coal + Pinocchio Jacobians) for trajopt."""
+        group = self.robot.group(group_name)
+
+        def clearances(v, movables, margin):
+            t0 = time.perf_counter()
+            found = self.cw.clearances(group.set(q, v), group_name, margin, movables=movables)
+            acc[0] += time.perf_counter() - t0
+            return {k: Clearance(d, g) for k, (d, g) in found.items()}
+
+        return clearances
 
     def static_path_ok(self, world, arm, path, ignore=()) -> bool:
         """The piecewise-straight arm path avoids fixed obstacles (checked at RES_ARM)."""
@@ -358,30 +379,48 @@ class PR2Geometry:
             acc[0] += time.perf_counter() - t0
         return ok
 
+    def limits(self, group) -> tuple[np.ndarray, np.ndarray]:
+        """(velocity, acceleration) limits per joint of ``group`` that trajectories respect."""
+        timing = {**TIMING, **{k: v for k, v in self.layout.extra.items() if k in TIMING}}
+        if group == "base":
+            return np.array(timing["base_velocity"], float), np.array(timing["base_acceleration"], float)
+        return self.robot.velocity_limits(group), np.full(7, float(timing["arm_acceleration"]))
+
     def _segment(self, kind, group, path, holding):
+        from interlayer_optim.timing import time_parameterize
+
         g = self.robot.group(group)
         space = self.base_space if group == "base" else self.arm_space[group.split("_")[0]]
-        speed = BASE_SPEED if group == "base" else ARM_SPEED
-        t, points = 0.0, []
-        for i, p in enumerate(path):
-            if i:
-                t += space.distance(path[i - 1], p) / speed
-            points.append({"positions": [float(v) for v in p], "time_from_start": round(t, 4)})
+        path = [np.asarray(p, float) for p in path]
+        if group == "base":  # unwrap the heading, so that the timing follows the short way round
+            raw, path = path, path[:1]
+            for p in raw[1:]:
+                path.append(path[-1] + space.difference(path[-1], p))
+        vmax, amax = self.limits(group)
+        with self.stats.timer("timing"):
+            points = time_parameterize(path, vmax, amax, step=space.resolution)
+        if group == "base":
+            for p in points:
+                p["positions"][2] = wrap(p["positions"][2])
         names = ["x", "y", "theta"] if group == "base" else list(g.dof_names)
         return {"kind": kind, "group": group, "joint_names": names, "points": points, "holding": holding}
 
     def _line(self, w, arm, path, kind, segs, acc):
-        """A piecewise-straight joint path through IK waypoints, each piece checked like a straight line."""
+        """A straight tool line through IK waypoints: with ``planner.cartesian`` = "ik:cartesian" the
+        tool follows it between waypoints; with "interpolate", each piece is straight in joint space."""
         from interlayer.motion import MotionPlan
 
+        planner = self.cartesian or self.approach
+        full = [np.asarray(path[0], float)]
         for a, b in zip(path, path[1:]):
-            res = self.approach.plan(self.arm_query(w, arm, a, b, f"{kind}", acc))
+            res = planner.plan(self.arm_query(w, arm, a, b, f"{kind}", acc))
             if not res.ok:
                 return res
-        if not self.fine_ok(w, f"{arm}_arm", path, acc):
+            full += [np.asarray(p, float) for p in res.path[1:]]
+        if not self.fine_ok(w, f"{arm}_arm", full, acc):
             return MotionPlan(False, reason="the straight line touches an obstacle between two collision checks")
-        segs.append(self._segment(kind, f"{arm}_arm", [np.asarray(p, float) for p in path], _holding(w)))
-        return MotionPlan(True, tuple(path))
+        segs.append(self._segment(kind, f"{arm}_arm", full, _holding(w)))
+        return MotionPlan(True, tuple(full))
 
     def _move_base(self, step, world, cand, motion, acc):
         goal = tuple(float(v) for v in cand.waypoints[0])

@@ -1,0 +1,202 @@
+"""``trajopt``: joint-space trajectory optimisation by sequential convex programming (after TrajOpt,
+Schulman et al. 2013, which the paper used to refine every action).
+
+Waypoints between the fixed start and goal minimise the sum of squared steps subject to a margin
+``safety`` from every obstacle, at each waypoint and at the middle of each step. Signed distances
+and their gradients come from the query (``MotionQuery.clearances``: Coal distances and Pinocchio
+Jacobians for the PR2; finite differences here when a domain gives none). Each iteration
+linearises them and solves a QP (proxsuite) with l1 penalties on the violations and a trust region;
+the penalty grows while constraints stay violated. Initialisations: the straight line, then lines
+through random via points, until the time limit. A trajectory counts only if the query's collision
+check passes along it at the space's resolution. With movable objects relaxed (GetMPErrors), the
+best trajectory is the one whose collisions name the obstructions.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from interlayer.errors import UserError
+from interlayer.motion import MotionPlanner, segment_valid
+
+
+BIG = 1e3  # "unbounded" for the QP (1e20 slows proxsuite down)
+PAIRS_PER_POINT = 10  # the closest (body, obstacle) pairs constrained at each point: keeps the QPs small
+
+
+class TrajOptPlanner(MotionPlanner):
+    """Options: ``time_limit`` (s per query), ``waypoints`` (per trajectory, ends included),
+    ``safety`` (m), ``inits`` (most initialisations per query), ``iterations`` (SCP iterations per
+    initialisation), ``seed`` (random via points)."""
+
+    def __init__(self, time_limit=2.0, waypoints=12, safety=0.02, inits=5, iterations=15, seed=0, options=None):
+        super().__init__(name="trajopt", time_limit=time_limit, options=dict(options or {}))
+        self.waypoints, self.safety, self.inits, self.iterations, self.seed = waypoints, safety, inits, iterations, seed
+
+    def _solve(self, query, relaxed, time_limit):
+        if query.clearances is None:
+            raise UserError(f"The motion planner 'trajopt' needs signed distances, which the query '{query.label}' "
+                            f"does not provide; choose an OMPL planner for this domain.")
+        deadline = time.perf_counter() + time_limit
+        space, is_valid = query.space, query.check(relaxed)
+        start = np.asarray(query.start, float)
+        goal = start + space.difference(start, query.goal)  # unwrapped: circular coordinates stay continuous
+        rng = np.random.default_rng(self.seed)
+        problem = _SCP(space, lambda q, m: query.clearances(space.interpolate(q, q, 0.0), not relaxed, m),
+                       self.safety, self.iterations)
+        for k in range(self.inits):
+            if time.perf_counter() > deadline:
+                break
+            if k == 0:
+                X = np.linspace(start, goal, self.waypoints)
+            else:  # a random via point, both halves straight
+                via = np.where(space.circular, start + rng.uniform(-np.pi, np.pi, space.dim),
+                               rng.uniform(space.lower, space.upper))
+                X = _resample([start, via, goal], self.waypoints)
+            for _ in range(2):  # optimise; a collision between waypoints doubles them and goes on
+                X = problem.optimise(X, deadline)
+                if X is None:  # out of time
+                    return None
+                path = [space.interpolate(q, q, 0.0) for q in X]
+                bad = [i for i in range(len(path) - 1) if not segment_valid(space, path[i], path[i + 1], is_valid)]
+                if not bad:
+                    if self.stats is not None:
+                        self.stats.count("trajopt_inits", k + 1)
+                    return path
+                X = _refine(X)
+        return None
+
+
+class _SCP:
+    """The penalty SCP of one trajectory (fixed ends)."""
+
+    def __init__(self, space, clearances, safety, iterations):
+        self.space, self.clearances, self.safety, self.iterations = space, clearances, safety, iterations
+        self.lower = np.where(space.circular, -np.inf, space.lower)
+        self.upper = np.where(space.circular, np.inf, space.upper)
+        self._key, self._terms = None, None  # the last trajectory's terms (evaluated twice per step)
+        self._ends = None  # pair -> required distance where the trajectory's ends are closer than safety
+
+    def terms(self, X, margin):
+        """Linearised clearance terms: (rows, distances - required distances, gradients) at waypoints
+        and step midpoints; a row is ((waypoint index, weight), ...) of the interior waypoints the
+        point depends on. A pair closer than ``safety`` at an end of the trajectory, which no
+        optimisation can change, is only required not to get closer than there."""
+        n = len(X)
+        if self._ends is None:
+            self._ends = {}
+            for q in (X[0], X[-1]):
+                for key, c in self.clearances(q, self.safety).items():
+                    self._ends[key] = min(self._ends.get(key, self.safety), c.distance)
+        rows, dist, grads = [], [], []
+        points = [((i, 1.0),) for i in range(1, n - 1)] + [((i, 0.5), (i + 1, 0.5)) for i in range(n - 1)]
+        for row in points:
+            q = sum(w * X[i] for i, w in row)
+            near = sorted(((c.distance - self._ends.get(key, self.safety), key, c)
+                           for key, c in self.clearances(q, margin).items()), key=lambda e: e[0])
+            for excess, key, c in near[:PAIRS_PER_POINT]:
+                g = c.gradient if c.gradient is not None else self._gradient(q, key, c.distance, margin)
+                rows.append(tuple((i, w) for i, w in row if 0 < i < n - 1))
+                dist.append(excess)
+                grads.append(np.asarray(g, float))
+        return rows, np.array(dist), grads
+
+    def _gradient(self, q, key, d, margin, h=1e-3):
+        g = np.zeros(len(q))
+        for j in range(len(q)):
+            dq = q.copy()
+            dq[j] += h
+            c = self.clearances(dq, margin + 1.0).get(key)
+            g[j] = 0.0 if c is None else (c.distance - d) / h
+        return g
+
+    def terms_cached(self, X):
+        key = X.tobytes()
+        if self._key != key:
+            self._key, self._terms = key, self.terms(X, 1.5 * self.safety)
+        return self._terms
+
+    def optimise(self, X, deadline):
+        import proxsuite
+
+        X = np.array(X, float)
+        n, dim = X.shape
+        m = (n - 2) * dim
+        if m == 0:
+            return X
+        # smoothness: sum of squared steps, as 0.5 x'Hx + c'x over the interior waypoints
+        D = np.zeros((n - 1, n))
+        D[np.arange(n - 1), np.arange(n - 1)], D[np.arange(n - 1), np.arange(1, n)] = -1.0, 1.0
+        L = np.kron(D, np.eye(dim))
+        Li, Lb = L[:, dim:-dim], L[:, list(range(dim)) + list(range(m + dim, m + 2 * dim))]
+        ends = np.concatenate([X[0], X[-1]])
+        H_x, c_x = 2 * Li.T @ Li, 2 * Li.T @ (Lb @ ends)
+
+        def smooth(Y):
+            return float(np.sum(np.diff(Y, axis=0) ** 2))
+
+        mu, trust = 10.0, 0.3
+        rows, d, grads = self.terms_cached(X)
+        merit = smooth(X) + mu * np.maximum(0.0, -d).sum()
+        for _ in range(self.iterations):
+            if time.perf_counter() > deadline:
+                return None
+            k = len(d)
+            x0 = X[1:-1].ravel()
+            H = np.zeros((m + k, m + k))
+            H[:m, :m] = H_x + 1e-6 * np.eye(m)
+            H[m:, m:] = 1e-3 * np.eye(k)  # a little curvature on the slacks: proxsuite converges much faster
+            g = np.concatenate([c_x, np.full(k, mu)])
+            C = np.zeros((k, m + k))  # -g.x - t <= excess - g.x0
+            for j, (row, gj) in enumerate(zip(rows, grads)):
+                for i, w in row:
+                    C[j, (i - 1) * dim:i * dim] = -w * gj
+                C[j, m + j] = -1.0
+            u = d + C[:, :m] @ x0
+            lo = np.concatenate([np.maximum(x0 - trust, np.tile(self.lower, n - 2)), np.zeros(k)])
+            hi = np.concatenate([np.minimum(x0 + trust, np.tile(self.upper, n - 2)), np.full(k, BIG)])
+            qp = proxsuite.proxqp.dense.QP(m + k, 0, k, True)
+            qp.settings.eps_abs = 1e-5
+            qp.settings.verbose = False
+            qp.init(H, g, None, None, C if k else None, np.full(k, -BIG) if k else None, u if k else None, lo, hi)
+            qp.solve()
+            x = qp.results.x[:m]
+            model = smooth(np.vstack([X[0], x.reshape(-1, dim), X[-1]])) + mu * qp.results.x[m:].sum()
+            Y = np.vstack([X[0], x.reshape(-1, dim), X[-1]])
+            rows_y, d_y, grads_y = self.terms_cached(Y)
+            merit_y = smooth(Y) + mu * np.maximum(0.0, -d_y).sum()
+            predicted = merit - model
+            if predicted > 1e-9 and (merit - merit_y) > 0.1 * predicted:
+                X, rows, d, grads, merit = Y, rows_y, d_y, grads_y, merit_y
+                trust = min(1.0, trust * 1.5)
+                if predicted < 1e-4 and (d >= 0).all():
+                    return X
+            else:
+                trust *= 0.5
+            if trust < 1e-3 or predicted <= 1e-9:
+                if (d >= 0).all():  # converged with every margin kept
+                    return X
+                mu, trust = mu * 10, 0.3  # stuck too close: press harder
+                if mu > 1e4:
+                    break
+                merit = smooth(X) + mu * np.maximum(0.0, -d).sum()
+        return X  # the caller's collision check decides (the hulls here are coarser than the checked shapes)
+
+
+def _resample(points, n):
+    """``n`` points evenly spaced along the polyline through ``points``."""
+    P = np.asarray(points, float)
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
+    if s[-1] <= 0:
+        return np.repeat(P[:1], n, axis=0)
+    t = np.linspace(0.0, s[-1], n)
+    return np.stack([np.interp(t, s, P[:, j]) for j in range(P.shape[1])], axis=1)
+
+
+def _refine(X):
+    """Twice the waypoints: the midpoints inserted."""
+    out = [X[0]]
+    for a, b in zip(X, X[1:]):
+        out += [(a + b) / 2, b]
+    return np.array(out)
