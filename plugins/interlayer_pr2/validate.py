@@ -177,7 +177,7 @@ def _check_timing(geometry, space, group_name, names, points, path, at):
             speed = "instantly" if dt <= 0 else f"at {step[j] / dt:.3f}"
             return (f"{at}: too fast between points {k} and {k + 1}: {names[j]} moves {speed} "
                     f"(limit {vmax[j]:.3f}) per second")
-    for key, limit, tol in (("velocities", vmax, vtol), ("accelerations", amax, atol)):
+    for key, limit, tol, word in (("velocities", vmax, vtol, "velocity"), ("accelerations", amax, atol, "acceleration")):
         for k, p in enumerate(points):
             if key not in p:
                 continue
@@ -186,7 +186,7 @@ def _check_timing(geometry, space, group_name, names, points, path, at):
                 return f"{at}: point {k} has {len(value)} {key} for {len(names)} joints"
             if (value > tol).any():
                 j = int(np.argmax(value / tol))
-                return f"{at}: point {k}: {names[j]} {key[:-3]}y {value[j]:.3f} exceeds its limit {limit[j]:.3f}"
+                return f"{at}: point {k}: {names[j]} {word} {value[j]:.3f} exceeds its limit {limit[j]:.3f}"
     if all("velocities" in p for p in points):
         v = np.array([p["velocities"] for p in points], float)
         for k in range(len(points) - 1):
