@@ -16,6 +16,19 @@ from interlayer_optim.trajopt import TrajOptPlanner
 from test_pr2_plan import EXAMPLE, hold_run  # noqa: F401  (module-scoped fixture: one solve)
 
 
+def test_pr2_viewer_plays_motions_in_real_time(hold_run):
+    from interlayer_meshcat.visualizer import FPS
+    from interlayer_pr2.draw import _in_real_time
+
+    _, out = hold_run
+    seg = _arm_segment(json.loads((out / "trajectory.json").read_text()))
+    path = [np.asarray(p["positions"]) for p in seg["points"]]
+    frames = _in_real_time(seg["points"], path, FPS)
+    duration = seg["points"][-1]["time_from_start"]
+    assert abs(len(frames) - duration * FPS) <= 1
+    assert np.allclose(frames[-1], path[-1])
+
+
 def test_timing_respects_velocity_and_acceleration_limits():
     path = np.array([[0.0, 0.0, 0.0], [1.0, 0.5, 0.0], [1.0, 1.5, 2.0], [0.2, 0.1, 0.3]])
     vmax, amax = np.array([0.5, 0.5, 1.0]), np.array([1.0, 1.0, 2.0])
@@ -33,17 +46,36 @@ def test_timing_respects_velocity_and_acceleration_limits():
     assert t[-1] < 2.0 * sum(np.max(np.abs(np.diff(path, axis=0)) / vmax, axis=1))
 
 
+def _arm_segment(traj):
+    return next(s for step in traj["steps"] for s in step["segments"] if s.get("group", "").endswith("arm"))
+
+
 def test_validator_rejects_a_too_fast_segment(hold_run, tmp_path):
     _, out = hold_run
+    assert api.validate(out) == []
     dst = tmp_path / "fast"
     shutil.copytree(out, dst)
     traj = json.loads((dst / "trajectory.json").read_text())
-    seg = next(s for step in traj["steps"] for s in step["segments"] if s.get("group", "").endswith("arm"))
-    for p in seg["points"]:
-        p["time_from_start"] *= 0.5  # twice as fast
+    seg = _arm_segment(traj)
+    for p in seg["points"]:  # ten times faster, and no velocities claimed: positions and times alone tell
+        p["time_from_start"] *= 0.1
+        del p["velocities"], p["accelerations"]
     (dst / "trajectory.json").write_text(json.dumps(traj))
     errors = api.validate(dst)
     assert errors and "too fast" in errors[0], errors
+
+
+def test_validator_rejects_velocities_changing_too_fast(hold_run, tmp_path):
+    _, out = hold_run
+    dst = tmp_path / "jerky"
+    shutil.copytree(out, dst)
+    traj = json.loads((dst / "trajectory.json").read_text())
+    for p in _arm_segment(traj)["points"]:  # twice as fast: velocities scale by 2, accelerations by 4
+        p["time_from_start"] *= 0.5
+        p["velocities"] = [2 * v for v in p["velocities"]]
+    (dst / "trajectory.json").write_text(json.dumps(traj))
+    errors = api.validate(dst)
+    assert errors and ("changes velocity" in errors[0] or "too fast" in errors[0]), errors
 
 
 def test_validator_rejects_claimed_accelerations_beyond_the_limit(hold_run, tmp_path):

@@ -2,7 +2,7 @@
 Schulman et al. 2013, which the paper used to refine every action).
 
 Waypoints between the fixed start and goal minimise the sum of squared steps subject to a margin
-``safety`` from every obstacle, at each waypoint and at the middle of each step. Signed distances
+``safety`` from every obstacle, at each waypoint and at two points of each step. Signed distances
 and their gradients come from the query (``MotionQuery.clearances``: Coal distances and Pinocchio
 Jacobians for the PR2; finite differences here when a domain gives none). Each iteration
 linearises them and solves a QP (proxsuite) with l1 penalties on the violations and a trust region;
@@ -22,7 +22,8 @@ from interlayer.motion import MotionPlanner, segment_valid
 
 
 BIG = 1e3  # "unbounded" for the QP (1e20 slows proxsuite down)
-PAIRS_PER_POINT = 10  # the closest (body, obstacle) pairs constrained at each point: keeps the QPs small
+PAIRS_PER_POINT = 3  # the closest (body, obstacle) pairs constrained at each point: keeps the QPs small
+STEP_SAMPLES = (0.5,)  # where clearances are also required between two waypoints
 
 
 class TrajOptPlanner(MotionPlanner):
@@ -45,27 +46,46 @@ class TrajOptPlanner(MotionPlanner):
         rng = np.random.default_rng(self.seed)
         problem = _SCP(space, lambda q, m: query.clearances(space.interpolate(q, q, 0.0), not relaxed, m),
                        self.safety, self.iterations)
+        vias = None
         for k in range(self.inits):
             if time.perf_counter() > deadline:
                 break
             if k == 0:
                 X = np.linspace(start, goal, self.waypoints)
-            else:  # a random via point, both halves straight
-                via = np.where(space.circular, start + rng.uniform(-np.pi, np.pi, space.dim),
-                               rng.uniform(space.lower, space.upper))
-                X = _resample([start, via, goal], self.waypoints)
+            else:  # through a random collision-free via point: those whose two straight halves collide least first
+                if vias is None:
+                    vias = self._vias(space, start, goal, is_valid, rng)
+                if k > len(vias):
+                    break
+                X = _resample([start, vias[k - 1], goal], self.waypoints)
+            fallback = X if _valid(space, X, is_valid) else None  # an init may be collision-free already
             for _ in range(2):  # optimise; a collision between waypoints doubles them and goes on
-                X = problem.optimise(X, deadline)
-                if X is None:  # out of time
-                    return None
-                path = [space.interpolate(q, q, 0.0) for q in X]
-                bad = [i for i in range(len(path) - 1) if not segment_valid(space, path[i], path[i + 1], is_valid)]
-                if not bad:
-                    if self.stats is not None:
-                        self.stats.count("trajopt_inits", k + 1)
-                    return path
-                X = _refine(X)
+                Y = problem.optimise(X, deadline)
+                if Y is not None and _valid(space, Y, is_valid):
+                    fallback = Y
+                if fallback is not None or Y is None:
+                    break
+                X = _refine(Y)
+            if fallback is not None:
+                if self.stats is not None:
+                    self.stats.count("trajopt_inits", k + 1)
+                return [space.interpolate(q, q, 0.0) for q in fallback]
         return None
+
+    def _vias(self, space, start, goal, is_valid, rng, samples=40):
+        """Collision-free random via points, by the share of the two straight halves through them that
+        collides (checked at 4x the space's resolution)."""
+        scored = []
+        for _ in range(samples * 5):
+            via = np.where(space.circular, start + rng.uniform(-np.pi, np.pi, space.dim),
+                           rng.uniform(space.lower, space.upper))
+            if not is_valid(space.interpolate(via, via, 0.0)):
+                continue
+            line = space.densify([start, via, goal], 4 * space.resolution)
+            scored.append((sum(not is_valid(q) for q in line) / len(line), len(scored), via))
+            if len(scored) == samples:
+                break
+        return [via for _, _, via in sorted(scored, key=lambda e: e[:2])]
 
 
 class _SCP:
@@ -90,7 +110,8 @@ class _SCP:
                 for key, c in self.clearances(q, self.safety).items():
                     self._ends[key] = min(self._ends.get(key, self.safety), c.distance)
         rows, dist, grads = [], [], []
-        points = [((i, 1.0),) for i in range(1, n - 1)] + [((i, 0.5), (i + 1, 0.5)) for i in range(n - 1)]
+        points = [((i, 1.0),) for i in range(1, n - 1)]
+        points += [((i, 1 - f), (i + 1, f)) for i in range(n - 1) for f in STEP_SAMPLES]
         for row in points:
             q = sum(w * X[i] for i, w in row)
             near = sorted(((c.distance - self._ends.get(key, self.safety), key, c)
@@ -136,7 +157,7 @@ class _SCP:
         def smooth(Y):
             return float(np.sum(np.diff(Y, axis=0) ** 2))
 
-        mu, trust = 10.0, 0.3
+        mu, trust = 300.0, 0.3
         rows, d, grads = self.terms_cached(X)
         merit = smooth(X) + mu * np.maximum(0.0, -d).sum()
         for _ in range(self.iterations):
@@ -161,6 +182,11 @@ class _SCP:
             qp.settings.verbose = False
             qp.init(H, g, None, None, C if k else None, np.full(k, -BIG) if k else None, u if k else None, lo, hi)
             qp.solve()
+            if qp.results.info.status != proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED:
+                trust *= 0.5  # numerically infeasible or not converged: a smaller step
+                if trust < 1e-3:
+                    break
+                continue
             x = qp.results.x[:m]
             model = smooth(np.vstack([X[0], x.reshape(-1, dim), X[-1]])) + mu * qp.results.x[m:].sum()
             Y = np.vstack([X[0], x.reshape(-1, dim), X[-1]])
@@ -178,10 +204,15 @@ class _SCP:
                 if (d >= 0).all():  # converged with every margin kept
                     return X
                 mu, trust = mu * 10, 0.3  # stuck too close: press harder
-                if mu > 1e4:
+                if mu > 1e5:
                     break
                 merit = smooth(X) + mu * np.maximum(0.0, -d).sum()
         return X  # the caller's collision check decides (the hulls here are coarser than the checked shapes)
+
+
+def _valid(space, X, is_valid) -> bool:
+    path = [space.interpolate(q, q, 0.0) for q in X]
+    return all(segment_valid(space, a, b, is_valid) for a, b in zip(path, path[1:]))
 
 
 def _resample(points, n):

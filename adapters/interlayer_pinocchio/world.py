@@ -122,7 +122,7 @@ class CollisionWorld:
         self._variants: dict[tuple, _Variant] = {}
         self._slots: list[_Slot] = []  # most recently used first
         self._request = coal.CollisionRequest()
-        self._local_spheres = {}  # id(geometry) -> (AABB centre, radius, geometry)
+        self._local_boxes = {}  # id(geometry) -> (its local AABB's corners, geometry)
         self._tool_joint = {arm: robot.model.frames[robot.model.getFrameId(robot.tool_frame(arm))].parentJoint
                             for arm in ARMS}
         names = [g.name for g in robot.collision_model.geometryObjects]
@@ -291,61 +291,75 @@ class CollisionWorld:
 
     def clearances(self, q, group: str, margin: float, movables: bool = True,
                    ignore: Iterable[str] = frozenset()) -> dict[str, tuple[float, np.ndarray]]:
-        """Signed distance and its gradient (w.r.t. ``group``'s vector) for every pair of (a body
-        ``group`` moves: robot link or held object, an environment object) closer than ``margin``:
-        ``{"link|object": (distance, gradient)}``. Robot links are taken as their convex hulls
-        (signed distances need convex shapes); self pairs are left to the collision checks."""
+        """Signed distance and its gradient (w.r.t. ``group``'s vector) for every pair closer than
+        ``margin`` of a body ``group`` moves (robot link or held object) and an environment object or
+        a robot link it may collide with (the SRDF's pairs, including pairs of the group's own links):
+        ``{"link|other": (distance, gradient)}``. Robot links are taken as their convex hulls (signed
+        distances need convex shapes), so they are a little more conservative than the collision checks."""
         if self._needs_build:
             self._build()
         q = _as_q(q)
         model, data, gm = self._model, self._data, self._gm
-        g = self.robot.group(group)
         cols = self._group_columns(group)
         pin.computeJointJacobians(model, data, q)  # also forward kinematics
         moving = self.robot.moving_joints(group)
         skip = frozenset(ignore)
-        bodies, obstacles = [], []
+        # (name, geometry, world pose, robot geometry id or None, joint it moves with or None)
+        bodies, others = [], []
         for obj in self._objects.values():
             if obj.held_by is not None:
-                if self._tool_joint[obj.held_by] in moving:
-                    bodies.append((obj.name, obj.geometry, self._tool_joint[obj.held_by],
-                                   gm.geometryObjects[obj.gid].placement, None))
+                joint = self._tool_joint[obj.held_by]
+                if joint in moving:
+                    bodies.append((obj.name, obj.geometry, data.oMi[joint] * gm.geometryObjects[obj.gid].placement,
+                                   None, joint))
             elif obj.name not in skip and (movables or not obj.movable):
-                obstacles.append((obj.name, obj.geometry, obj.pose, None))
+                others.append((obj.name, obj.geometry, obj.pose, None, None))
         for gid, hull in self._hulls().items():
             go = gm.geometryObjects[gid]
+            entry = (self._link_names[gid], hull, data.oMi[go.parentJoint] * go.placement, gid, go.parentJoint)
             if go.parentJoint in moving:
-                bodies.append((self._link_names[gid], hull, go.parentJoint, go.placement, gid))
-            else:  # the rest of the robot: an obstacle to the links that may collide with it (SRDF)
-                obstacles.append((self._link_names[gid], hull, data.oMi[go.parentJoint] * go.placement, gid))
-        if not bodies or not obstacles:
+                bodies.append(entry)
+            else:
+                others.append(entry[:4] + (None,))
+        if not bodies:
             return {}
-        body_poses = [data.oMi[joint] * placement for _, _, joint, placement, _ in bodies]
-        bc, br = self._spheres([b[1] for b in bodies], body_poses)
-        oc, orad = self._spheres([o[1] for o in obstacles], [o[2] for o in obstacles])
-        gap = np.linalg.norm(bc[:, None] - oc[None], axis=2) - br[:, None] - orad[None]
+        others = bodies + others  # a pair of two moving links counts once (i < j)
+        blo, bhi = self._boxes([b[1] for b in bodies], [b[2] for b in bodies])
+        olo, ohi = self._boxes([o[1] for o in others], [o[2] for o in others])
+        apart = np.maximum(np.maximum(blo[:, None] - ohi[None], olo[None] - bhi[:, None]), 0.0)
+        gap = np.linalg.norm(apart, axis=2)  # a lower bound on the distance: world AABBs apart
         pairs = self._self_pairs()
         request, out, jacobians = coal.DistanceRequest(), {}, {}
-        for i, j in zip(*np.nonzero(gap < margin)):
-            name, geom, joint, _, gid = bodies[i]
-            oname, ogeom, opose, ogid = obstacles[j]
-            if ogid is not None and (gid is None or (min(gid, ogid), max(gid, ogid)) not in pairs):
-                continue
-            result = coal.DistanceResult()
-            d = coal.distance(geom, _transform(body_poses[i]), ogeom, _transform(opose), request, result)
-            if d >= margin:
-                continue
+
+        def point_jacobian(joint, point):
+            if joint is None:
+                return 0.0
             if joint not in jacobians:
                 jacobians[joint] = pin.getJointJacobian(model, data, joint, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:, cols]
             J = jacobians[joint]
-            r = result.getNearestPoint1() - data.oMi[joint].translation
-            J_point = J[:3] - pin.skew(r) @ J[3:]  # velocity of the body's nearest point
-            out[f"{name}|{oname}"] = (float(d), -result.normal @ J_point)
+            return J[:3] - pin.skew(point - data.oMi[joint].translation) @ J[3:]  # velocity of that point
+
+        for i, j in zip(*np.nonzero(gap < margin)):
+            name, geom, pose, gid, joint = bodies[i]
+            oname, ogeom, opose, ogid, ojoint = others[j]
+            if j <= i and j < len(bodies):
+                continue
+            robot_pair = gid is not None and ogid is not None
+            if (robot_pair and (min(gid, ogid), max(gid, ogid)) not in pairs) or \
+                    (ogid is not None) != robot_pair or (ojoint is not None and not robot_pair):
+                continue  # not an SRDF pair; held object vs robot (the hand touches it); held vs held
+            result = coal.DistanceResult()
+            d = coal.distance(geom, _transform(pose), ogeom, _transform(opose), request, result)
+            if d >= margin:
+                continue
+            # d grows as the other body's nearest point moves along the normal and this one's against it
+            grad = result.normal @ (point_jacobian(ojoint, result.getNearestPoint2())
+                                    - point_jacobian(joint, result.getNearestPoint1()))
+            out[f"{name}|{oname}"] = (float(d), np.asarray(grad, float))
         if group == "base":  # the planar joint's velocity is in the base frame; the vector is (x, y, theta)
             c, s_ = q[2], q[3]
             R = np.array([[c, s_, 0.0], [-s_, c, 0.0], [0.0, 0.0, 1.0]])
             out = {k: (d, grad @ R) for k, (d, grad) in out.items()}
-        assert all(len(grad) == g.dof for _, grad in out.values())
         return out
 
     def _group_columns(self, group: str) -> list[int]:
@@ -355,18 +369,19 @@ class CollisionWorld:
             cols += list(range(joint.idx_v, joint.idx_v + joint.nv))
         return cols
 
-    def _spheres(self, geometries, poses):
-        """World centres (n x 3) and radii of spheres around ``geometries`` at ``poses`` (local AABBs)."""
-        centres, radii = np.empty((len(poses), 3)), np.empty(len(poses))
+    def _boxes(self, geometries, poses):
+        """World axis-aligned boxes (lower and upper corners, n x 3 each) around ``geometries`` at ``poses``."""
+        lo, hi = np.empty((len(poses), 3)), np.empty((len(poses), 3))
         for k, (geom, pose) in enumerate(zip(geometries, poses)):
-            local = self._local_spheres.get(id(geom))
-            if local is None or local[2] is not geom:
+            local = self._local_boxes.get(id(geom))
+            if local is None or local[1] is not geom:
                 box = geom.aabb_local
-                local = self._local_spheres[id(geom)] = ((box.min_ + box.max_) / 2,
-                                                         float(np.linalg.norm(box.max_ - box.min_) / 2), geom)
-            centres[k] = pose.rotation @ local[0] + pose.translation
-            radii[k] = local[1]
-        return centres, radii
+                corners = np.array([[x, y, z] for x in (box.min_[0], box.max_[0]) for y in (box.min_[1], box.max_[1])
+                                    for z in (box.min_[2], box.max_[2])])
+                local = self._local_boxes[id(geom)] = (corners, geom)
+            world = local[0] @ pose.rotation.T + pose.translation
+            lo[k], hi[k] = world.min(axis=0), world.max(axis=0)
+        return lo, hi
 
     def _self_pairs(self) -> frozenset:
         """The robot's self-collision pairs the SRDF keeps, as (smaller, larger) geometry ids."""

@@ -289,6 +289,19 @@ def _initial(geometry):
 
 
 # ---------------------------------------------------------------- animation
+def _in_real_time(points, path, fps, heading=None):
+    """Positions every 1/fps s along a timed segment (linear between its points, as validated), or
+    None when the segment has no usable time stamps."""
+    times = [p.get("time_from_start") for p in points]
+    if any(not isinstance(t, (int, float)) for t in times) or times[-1] <= 0 or len(path) < 2:
+        return None
+    P = np.array(path, float)
+    if heading is not None:  # unwrap, so that the heading turns the short way between two points
+        P[:, heading] = np.unwrap(P[:, heading])
+    ts = np.append(np.arange(0.0, times[-1], 1.0 / fps)[1:], times[-1])
+    return [np.array([np.interp(t, times, P[:, j]) for j in range(P.shape[1])]) for t in ts]
+
+
 def _densify_arm(a, b):
     n = max(1, int(math.ceil(float(np.max(np.abs(b - a))) / STEP_ARM))) if len(a) else 1
     return [a + (b - a) * (k / n) for k in range(1, n + 1)]
@@ -304,6 +317,8 @@ def _densify_base(a, b):
 def animation_frames(geometry, scene, trajectory) -> list:
     """Frames of the whole refined plan: base and arm motions, grippers opening / closing, held objects
     carried with the gripper between grasp and release. Each frame carries ``"@step"``."""
+    from interlayer_meshcat.visualizer import FPS as fps  # motions play in real time at the viewer's rate
+
     handle = _robot_handle(geometry, scene)
     state = _State(geometry, trajectory.get("initial") or _initial(geometry))
     robot = geometry.robot
@@ -327,10 +342,11 @@ def animation_frames(geometry, scene, trajectory) -> list:
                         continue
                     if group == "base":
                         cur = np.asarray(state.base, float)
-                        for a, b in zip([cur] + path[:-1], path):
-                            for v in _densify_base(a, b):
-                                state.base = tuple(float(x) for x in v)
-                                frames.append(frame(i))
+                        timed = _in_real_time(seg["points"], path, fps, heading=2)
+                        for v in timed if timed is not None else (
+                                v for a, b in zip([cur] + path[:-1], path) for v in _densify_base(a, b)):
+                            state.base = tuple(float(x) for x in v)
+                            frames.append(frame(i))
                     else:
                         arm = group.split("_")[0]
                         names = list(seg.get("joint_names") or [])
@@ -342,10 +358,11 @@ def animation_frames(geometry, scene, trajectory) -> list:
                         if order is not None:
                             path = [p[order] for p in path]
                         cur = np.asarray(state.arms.get(arm, path[0]), float)
-                        for a, b in zip([cur] + path[:-1], path):
-                            for v in _densify_arm(a, b):
-                                state.arms[arm] = tuple(float(x) for x in v)
-                                frames.append(frame(i))
+                        timed = _in_real_time(seg["points"], path, fps)
+                        for v in timed if timed is not None else (
+                                v for a, b in zip([cur] + path[:-1], path) for v in _densify_arm(a, b)):
+                            state.arms[arm] = tuple(float(x) for x in v)
+                            frames.append(frame(i))
                 elif kind == "gripper":
                     arm, cmd = seg.get("arm"), seg.get("command")
                     g = robot.group(f"{arm}_gripper")

@@ -387,11 +387,19 @@ class PR2Geometry:
         return self.robot.velocity_limits(group), np.full(7, float(timing["arm_acceleration"]))
 
     def _segment(self, kind, group, path, holding):
+        """A motion segment; its points get their timing when the plan is written (``timed``)."""
+        names = ["x", "y", "theta"] if group == "base" else list(self.robot.group(group).dof_names)
+        points = [{"positions": [float(v) for v in p]} for p in path]
+        return {"kind": kind, "group": group, "joint_names": names, "points": points, "holding": holding}
+
+    def timed(self, segment) -> dict:
+        """``segment`` with TOPP-RA timing: positions (densified to the planning resolution),
+        velocities, accelerations and time_from_start within :meth:`limits`."""
         from interlayer_optim.timing import time_parameterize
 
-        g = self.robot.group(group)
+        group = segment["group"]
         space = self.base_space if group == "base" else self.arm_space[group.split("_")[0]]
-        path = [np.asarray(p, float) for p in path]
+        path = [np.asarray(p["positions"], float) for p in segment["points"]]
         if group == "base":  # unwrap the heading, so that the timing follows the short way round
             raw, path = path, path[:1]
             for p in raw[1:]:
@@ -402,8 +410,7 @@ class PR2Geometry:
         if group == "base":
             for p in points:
                 p["positions"][2] = wrap(p["positions"][2])
-        names = ["x", "y", "theta"] if group == "base" else list(g.dof_names)
-        return {"kind": kind, "group": group, "joint_names": names, "points": points, "holding": holding}
+        return {**segment, "points": points}
 
     def _line(self, w, arm, path, kind, segs, acc):
         """A straight tool line through IK waypoints: with ``planner.cartesian`` = "ik:cartesian" the
@@ -535,7 +542,8 @@ class PR2Geometry:
                 "format": "per segment a trajectory_msgs/JointTrajectory (joint_names, points with positions and "
                           "time_from_start); gripper open/close, grasp (attach) and release (detach) events between",
                 "initial": self.initial_world().to_json(),
-                "steps": [{"action": s.action, "args": list(s.args), "segments": o.segments}
+                "steps": [{"action": s.action, "args": list(s.args),
+                           "segments": [self.timed(seg) if "points" in seg else seg for seg in o.segments]}
                           for s, o in zip(plan, outcomes)]}
 
     def validate(self, plan, trajectory: dict) -> list[str]:
