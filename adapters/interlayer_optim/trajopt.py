@@ -46,18 +46,10 @@ class TrajOptPlanner(MotionPlanner):
         rng = np.random.default_rng(self.seed)
         problem = _SCP(space, lambda q, m: query.clearances(space.interpolate(q, q, 0.0), not relaxed, m),
                        self.safety, self.iterations)
-        vias = None
-        for k in range(self.inits):
+        for k, corners in enumerate(self._inits(space, start, goal, is_valid, rng)[:self.inits]):
             if time.perf_counter() > deadline:
                 break
-            if k == 0:
-                X = np.linspace(start, goal, self.waypoints)
-            else:  # through a random collision-free via point: those whose two straight halves collide least first
-                if vias is None:
-                    vias = self._vias(space, start, goal, is_valid, rng)
-                if k > len(vias):
-                    break
-                X = _resample([start, vias[k - 1], goal], self.waypoints)
+            X = _resample(corners, self.waypoints)
             fallback = X if _valid(space, X, is_valid) else None  # an init may be collision-free already
             for _ in range(2):  # optimise; a collision between waypoints doubles them and goes on
                 Y = problem.optimise(X, deadline)
@@ -72,20 +64,22 @@ class TrajOptPlanner(MotionPlanner):
                 return [space.interpolate(q, q, 0.0) for q in fallback]
         return None
 
-    def _vias(self, space, start, goal, is_valid, rng, samples=40):
-        """Collision-free random via points, by the share of the two straight halves through them that
-        collides (checked at 4x the space's resolution)."""
-        scored = []
+    def _inits(self, space, start, goal, is_valid, rng, samples=40):
+        """Initial polylines: the straight line and lines through random collision-free via points,
+        those whose share of colliding states (checked at 4x the space's resolution) is smallest first."""
+        candidates = [[start, goal]]
         for _ in range(samples * 5):
             via = np.where(space.circular, start + rng.uniform(-np.pi, np.pi, space.dim),
                            rng.uniform(space.lower, space.upper))
-            if not is_valid(space.interpolate(via, via, 0.0)):
-                continue
-            line = space.densify([start, via, goal], 4 * space.resolution)
-            scored.append((sum(not is_valid(q) for q in line) / len(line), len(scored), via))
-            if len(scored) == samples:
-                break
-        return [via for _, _, via in sorted(scored, key=lambda e: e[:2])]
+            if is_valid(space.interpolate(via, via, 0.0)):
+                candidates.append([start, via, goal])
+                if len(candidates) > samples:
+                    break
+        scored = []
+        for i, corners in enumerate(candidates):
+            line = space.densify(corners, 4 * space.resolution)
+            scored.append((sum(not is_valid(space.interpolate(q, q, 0.0)) for q in line) / len(line), i, corners))
+        return [corners for _, _, corners in sorted(scored, key=lambda e: e[:2])]
 
 
 class _SCP:
