@@ -113,6 +113,7 @@ class Gripper2DGeometry:
         self.gripper = Body(gripper_shapes())
         self.held_body = Body(block_shapes())
         self.approach = InterpolatingPlanner(name="interpolate")
+        self.cartesian = None  # planner.cartesian, set by the run: the approach and retreat planner
         self.stats = None
         self._synced = None
 
@@ -194,7 +195,8 @@ class Gripper2DGeometry:
             return _failure(transit, "transit")
         segments.append({"kind": "transit", "path": [list(q) for q in transit.path], "holding": w.held})
         w = w.move_gripper(pre)
-        approach = self.approach.plan(self.query(w, pre, at, f"{step.action} approach"))
+        line = self.cartesian or self.approach
+        approach = line.plan(self.query(w, pre, at, f"{step.action} approach"))
         if not approach.ok:
             return _failure(approach, "approach")
         segments.append({"kind": "approach", "path": [list(q) for q in approach.path], "holding": w.held})
@@ -205,7 +207,7 @@ class Gripper2DGeometry:
         else:  # the block rests where the gripper put it
             w = replace(w, held=None)
             segments.append({"kind": "release", "object": block, "pose": list(w.blocks[block])})
-        retreat = self.approach.plan(self.query(w, at, pre, f"{step.action} retreat"))
+        retreat = line.plan(self.query(w, at, pre, f"{step.action} retreat"))
         if not retreat.ok:
             return _failure(retreat, "retreat")
         segments.append({"kind": "retreat", "path": [list(q) for q in retreat.path], "holding": w.held})
