@@ -131,6 +131,8 @@ class InterfaceLayer:
         init = self.model.init
         self.plan = []
         plan = self.call_task_planner(init, 0)  # line 2
+        if plan is None and (self.last_task_status == "timeout" or self._out_of_time()):
+            return "timeout", f"the task planner found no plan for the initial state within the time limit of {self.settings.time_limit:g} s", None
         if plan is None:
             return "unsolvable", "the task planner found no plan for the initial state", None
         self.plan, states = plan, self.progress_all(init, plan)
