@@ -250,3 +250,60 @@ def test_infeasible_reference_ends_unsolvable(host):
 
     result, _ = run(lambda *a: None, gen=gen, host=host)
     assert result.status == "unsolvable" and result.reason == "a is too wide for the gripper"
+
+
+def _refined(problem, model, plan, script_world=frozenset()):
+    from interlayer.refine import Refiner
+
+    gens = {"take": generator()}
+    layer = InterfaceLayer(model, None, None, gens, [], LoopSettings())
+    refiner = Refiner(problem.geometry, None, layer.make_generator, 2, lambda: False)
+    from interlayer.loop import _drain
+
+    done = _drain(refiner.try_refine(plan, 0, script_world, {}, partial=False))
+    return refiner, [done.outcomes[i] for i in range(len(plan))]
+
+
+def test_shortcut_drops_steps_the_plan_does_not_need():
+    """A step that the goal does not need and whose removal still refines is dropped; a step that a
+    learned obstruction makes necessary is kept."""
+    from interlayer.loop import _drain
+    from interlayer.shortcut import shortcut
+
+    problem = Problem(SPEC, {i: "item" for i in "aby"}, frozenset(("Takeable", t) for t in "aby"), "(Done a)",
+                      ScriptedGeometry(lambda *a: None), {})
+    model = abstract(problem)
+    plan = [GroundStep("take", ("b", "gp_b")), GroundStep("take", ("y", "gp_y")), GroundStep("take", ("a", "gp_a"))]
+    refiner, outcomes = _refined(problem, model, plan)
+    dropped = []
+    short, out = shortcut(plan, outcomes, model, model.init, refiner, frozenset(), _drain, lambda: False,
+                          lambda p: None, lambda d, p: dropped.append(d))
+    assert short == plan[2:] and len(out) == 1 and out[0].world == frozenset({"a"})
+    learned = model.init | {("Obstructs", "b", "gp_a", "a")}  # b stood in a's way: taking b stays
+    short, _ = shortcut(plan, outcomes, model, learned, refiner, frozenset(), _drain, lambda: False,
+                        lambda p: None, lambda d, p: None)
+    assert short == [plan[0], plan[2]]
+
+
+def test_shortcut_keeps_a_step_whose_removal_does_not_refine():
+    from interlayer.loop import _drain
+    from interlayer.shortcut import shortcut
+
+    def script(item, label, world, n):  # a can be taken only once b is gone: geometry, not learned
+        return Failure("unreachable") if item == "a" and "b" not in world else None
+
+    problem = Problem(SPEC, {i: "item" for i in "ab"}, frozenset(("Takeable", t) for t in "ab"), "(Done a)",
+                      ScriptedGeometry(script), {})
+    model = abstract(problem)
+    plan = [GroundStep("take", ("b", "gp_b")), GroundStep("take", ("a", "gp_a"))]
+    refiner, outcomes = _refined(problem, model, plan)
+    short, out = shortcut(plan, outcomes, model, model.init, refiner, frozenset(), _drain, lambda: False,
+                          lambda p: None, lambda d, p: None)
+    assert short == plan and out == outcomes
+
+
+def test_shortcut_is_optional(host):
+    result, _ = run(lambda *a: None, host=host)
+    assert result.counts["plan_length_before_shortcut"] == result.counts["plan_length"] == 1
+    result, _ = run(lambda *a: None, host=host, shortcut=False)
+    assert "plan_length" not in result.counts
