@@ -20,7 +20,6 @@ class LoopSettings:
     task_timeout: float = 60.0
     seed: int = 0
     shortcut: bool = True  # drop useless steps after a solve (shortcut.py)
-    shortcut_attempts: int = 2  # failed attempts per step while shortcutting
 
 
 def plan_json(plan) -> list:
@@ -116,21 +115,14 @@ class InterfaceLayer:
         """Drop steps the solved plan does not need (beyond the paper; see shortcut.py)."""
         from .shortcut import shortcut
 
-        before = len(self.plan)
-        refiner = Refiner(self.geometry, self.motion, self.make_generator, self.settings.shortcut_attempts,
-                          self._out_of_time, self._on_attempt, self.stats)
-
         def accepted(dropped, shorter):
             self.trace.emit("shortcut", dropped=plan_json(dropped), plan=plan_json(shorter))
 
-        def trying(shorter):
-            self.plan = shorter  # the plan being refined: attempts in the trace name its steps
-
-        plan, outcomes = shortcut(self.plan, outcomes, self.model, init | frozenset(self.learned), refiner, world0,
-                                  _drain, self._out_of_time, trying, accepted)
-        self.plan = plan
+        before = len(self.plan)
+        self.plan, outcomes = shortcut(self.plan, outcomes, self.model, init | frozenset(self.learned), self.geometry,
+                                       self.motion, world0, self._out_of_time, accepted, self.stats)
         self.stats.count("plan_length_before_shortcut", before)
-        self.stats.count("plan_length", len(plan))
+        self.stats.count("plan_length", len(self.plan))
         return outcomes
 
     # -- Alg. 1 -----------------------------------------------------------------------------
