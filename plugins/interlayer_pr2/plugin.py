@@ -2,6 +2,7 @@
 from interlayer import hookimpl
 
 PARAMS = {"scene": "cubby", "goal": "hold", "grasps": ["side"], "target_radius": 0.035, "clutter": 0, "objects": 15,
+          "approach": "free",
           # trajectory timing (TOPP-RA); arm velocities are the URDF's limits
           "arm_acceleration": 1.5, "base_velocity": [0.5, 0.5, 1.0], "base_acceleration": [0.5, 0.5, 1.0]}
 
@@ -98,8 +99,8 @@ def interlayer_register_pose_generators(registry):
     registry.add("pr2:move_base", generators.move_base, "base poses in an annulus around the object or put-down spot")
     registry.add("pr2:pick", generators.pick, "side (and top) grasps with pre-grasp and raise waypoints, by IK")
     registry.add("pr2:place", generators.place, "the put-down spot chosen by move_base and nearby variants, by IK")
-    registry.add("pr2c:pick", clutter.pick, "clutter: base pose + side grasp (move_base folded in), fewest objects in the way first")
-    registry.add("pr2c:place", clutter.place, "clutter: a free table spot far from the target and others + base pose, by IK")
+    registry.add("pr2c:pick", clutter.ClutterSampler, "clutter: base pose + side grasp (move_base folded in), fewest objects in the way first")
+    registry.add("pr2c:place", clutter.ClutterSampler, "clutter: a free table spot far from the target and others + base pose, by IK")
 
 
 @hookimpl
