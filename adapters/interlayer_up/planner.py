@@ -202,12 +202,17 @@ def _solve_in_child(engine_name, params, problem, timeout):
     parent, child = ctx.Pipe(duplex=False)
     proc = ctx.Process(target=_child, args=(child, engine_name, params, problem, timeout), daemon=True)
     proc.start()
+    child.close()  # the parent's copy: a child that dies must close the pipe's last write end
     ready = parent.poll(timeout)
     if not ready:
         proc.kill()
         proc.join()
         return "timeout", None, f"the task planner '{engine_name}' timed out after {timeout:.0f} s"
-    status, names, reason = parent.recv()
+    try:
+        status, names, reason = parent.recv()
+    except EOFError:  # the child died without answering (a crash in the engine)
+        proc.join()
+        return "error", None, f"the task planner process '{engine_name}' died (exit code {proc.exitcode})"
     proc.join()
     if status != "solved":
         return status, None, reason

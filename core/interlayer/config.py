@@ -48,7 +48,12 @@ def apply_override(config: dict, assignment: str) -> None:
     if "=" not in assignment:
         raise UserError(f"The override '{assignment}' has no '='; write it as --set section.key=value.")
     key, value = assignment.split("=", 1)
-    parts = key.strip().split(".")
+    set_value(config, key, parse_value(value.strip()))
+
+
+def set_value(config: dict, key: str, value) -> None:
+    """Set ``section.key`` (dotted) to ``value``, creating sub-tables as needed."""
+    parts = str(key).strip().split(".")
     if len(parts) < 2:
         raise UserError(f"The override key '{key}' needs a section, e.g. planner.task or problem.obstructions.")
     node = config
@@ -56,7 +61,7 @@ def apply_override(config: dict, assignment: str) -> None:
         node = node.setdefault(p, {})
         if not isinstance(node, dict):
             raise UserError(f"The override key '{key}' goes through '{p}', which is not a section.")
-    node[parts[-1]] = parse_value(value.strip())
+    node[parts[-1]] = value
 
 
 def merge(base: dict, extra: dict) -> dict:
