@@ -50,6 +50,10 @@ class UPTaskPlanner(TaskPlanner):
             self._builders = {key: UPProblemBuilder(model)}
         return self._builders[key]
 
+    def prepare(self, model):
+        _quiet_environment()
+        self._builder(model).problem_for(model.init)
+
     def _plan(self, model, state, timeout):
         _quiet_environment()
         builder = self._builder(model)

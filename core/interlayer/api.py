@@ -187,6 +187,10 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
     trace.emit("start", problem=problem.name, references=len(model.references), config=config)
     if hasattr(problem.geometry, "stats"):
         problem.geometry.stats = stats
+    if hasattr(run.task, "prepare"):  # imports and translation before the clock starts
+        run.task.prepare(model)
+    if hasattr(run.motion, "prepare"):
+        run.motion.prepare()
     layer = InterfaceLayer(model, run.task, run.motion, run.generators, run.translators, settings, trace, stats)
     try:
         result = layer.solve()

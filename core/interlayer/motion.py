@@ -126,6 +126,9 @@ class MotionPlanner:
     def _plan(self, space: ConfigSpace, start, goal, is_valid, time_limit):  # pragma: no cover
         raise NotImplementedError
 
+    def prepare(self) -> None:
+        """One-time setup before the run's clock starts (e.g. importing the planning library)."""
+
 
 def segment_valid(space: ConfigSpace, a, b, is_valid) -> bool:
     return all(is_valid(q) for q in space.densify([a, b]))
