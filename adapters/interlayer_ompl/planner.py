@@ -100,7 +100,7 @@ class OMPLPlanner(MotionPlanner):
         setup.solve(float(time_limit))
         if not setup.haveExactSolutionPath():  # an approximate solution is not a path
             return None
-        if self.simplify:
-            setup.simplifySolution(min(0.1, float(time_limit)))
         path = setup.getSolutionPath()
+        if self.simplify:  # bounded by iterations, not by time: the same path under any load
+            setup.getPathSimplifier().simplifyMax(path)
         return [to_vec(path.getState(i)) for i in range(path.getStateCount())]
