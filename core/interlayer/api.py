@@ -181,16 +181,16 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
     settings = LoopSettings(time_limit=float(p["time_limit"]), max_traj_count=p["max_traj_count"],
                             max_refine_attempts=p["max_refine_attempts"], task_timeout=float(p["task_timeout"]),
                             seed=p["seed"])
+    if hasattr(run.task, "prepare"):  # imports and translation before the clock starts
+        run.task.prepare(model)
+    if hasattr(run.motion, "prepare"):
+        run.motion.prepare()
     trace = Trace([host.on_event, *listeners])
     for warning in host.warnings:
         trace.emit("warning", message=warning)
     trace.emit("start", problem=problem.name, references=len(model.references), config=config)
     if hasattr(problem.geometry, "stats"):
         problem.geometry.stats = stats
-    if hasattr(run.task, "prepare"):  # imports and translation before the clock starts
-        run.task.prepare(model)
-    if hasattr(run.motion, "prepare"):
-        run.motion.prepare()
     layer = InterfaceLayer(model, run.task, run.motion, run.generators, run.translators, settings, trace, stats)
     try:
         result = layer.solve()

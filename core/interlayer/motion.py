@@ -131,6 +131,7 @@ class MotionPlanner:
 
 
 def segment_valid(space: ConfigSpace, a, b, is_valid) -> bool:
+    """Whether the straight segment a-b is valid at the space's resolution."""
     return all(is_valid(q) for q in space.densify([a, b]))
 
 
