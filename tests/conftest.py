@@ -1,4 +1,5 @@
 import sys
+from collections import Counter
 from pathlib import Path
 
 import pytest
@@ -18,6 +19,15 @@ def host():
 @pytest.fixture(scope="session")
 def gripper_example():
     return str(ROOT / "examples" / "gripper2d.toml")
+
+
+# What the robustness tests (pytest -m robustness) did, printed at the end of the run.
+ROBUSTNESS: Counter = Counter()
+
+
+def pytest_terminal_summary(terminalreporter):
+    if ROBUSTNESS:
+        terminalreporter.write_line("robustness: " + ", ".join(f"{k} {v}" for k, v in sorted(ROBUSTNESS.items())))
 
 
 def pytest_report_header(config):
