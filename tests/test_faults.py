@@ -203,9 +203,16 @@ def test_a_crashing_task_planner_process_is_reported(monkeypatch):
         os._exit(3)
 
     monkeypatch.setattr(up_planner, "_solve", die)  # narrowly scoped: the child's work replaced by a crash
-    with pytest.raises(PluginFault, match=r"the plugin 'unified-planning' failed: its task planner 'pyperplan' .*"
+    with pytest.raises(PluginFault, match=r"the plugin 'unified-planning' failed: its task planner 'pyperplan' failed: "
                                           r"the task planner process 'pyperplan' died \(exit code 3\)"):
         api.solve(EXAMPLE, ["planner.task=pyperplan"])
+
+
+def test_a_task_planner_engine_that_fails_is_not_a_dead_end(capsys):
+    """Fast Downward rejecting its search string used to read as 'no plan for the initial state'."""
+    code, out, err = run_cli(capsys, "plan", EXAMPLE, "-q", "--set", 'task_planner.fast-downward.search="bogus("')
+    assert code == 1 and "no plan" not in err
+    assert "its task planner 'fast-downward' failed: the engine 'fast-downward' failed (INTERNAL_ERROR): " in err
 
 
 def test_a_hanging_task_planner_process_is_killed_at_its_limit(monkeypatch):

@@ -325,7 +325,7 @@ def solve_and_validate(tmp_path, config, overrides, label):
         ROBUSTNESS[f"{label} plans validated"] += 1
     else:
         assert result.status in ("timeout", "unsolvable") and result.reason
-        ROBUSTNESS[f"{label} not solved"] += 1
+        ROBUSTNESS[f"{label} not solved ({result.status}: {result.reason[:100]}; {overrides})"] += 1
 
 
 @settings(FUZZ, max_examples=8)

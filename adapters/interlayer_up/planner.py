@@ -182,6 +182,9 @@ def _solve(engine_name, params, problem, timeout):
     if res.status == S.UNSOLVABLE_INCOMPLETELY:
         return "incomplete", None, "the task planner's (incomplete) search found no plan"
     logs = " ".join(str(l.message)[-300:] for l in (res.log_messages or [])[-1:])
+    if res.status in (S.INTERNAL_ERROR, S.UNSUPPORTED_PROBLEM):  # the engine failed: no word on the state
+        last = [line.strip() for line in logs.splitlines() if line.strip()][-2:]
+        return "error", None, f"the engine '{engine_name}' failed ({res.status.name}): {' '.join(last) or 'no message'}"
     return "unsolvable", None, f"the task planner ended with {res.status.name} {logs}".strip()
 
 

@@ -9,7 +9,7 @@ from pathlib import Path
 from . import config as cfg
 from .abstraction import TaskModel, abstract
 from .errors import UserError
-from .faults import Guarded, PluginFault, blame, blamed
+from .faults import ComponentFailed, Guarded, PluginFault, blame, blamed
 from .loop import InterfaceLayer, Interrupted, LoopSettings
 from .plugins import PluginHost
 from .result import Result
@@ -105,7 +105,7 @@ class _TaskPlannerGuard(Guarded):
         plugin, component, _ = self._guard
         res = self.__getattr__("plan")(model, state, timeout)
         if res.status == "error":
-            raise PluginFault(plugin, component, RuntimeError(res.reason))
+            raise PluginFault(plugin, component, ComponentFailed(res.reason))
         return res
 
 

@@ -22,11 +22,17 @@ class PluginFault(Exception):
         self.plugin, self.component, self.cause = plugin, component, cause
 
     def sentence(self) -> str:
+        if isinstance(self.cause, ComponentFailed):
+            return f"{self.component} failed: {self.cause}"
         where = _innermost_frame(self.cause)
         return f"{self.component} raised {type(self.cause).__name__}: {_one_line(self.cause)}{where}"
 
     def __str__(self) -> str:
         return f"the plugin '{self.plugin}' failed: its {self.sentence()}"
+
+
+class ComponentFailed(Exception):
+    """A component reported its own failure (e.g. a task planner's status "error"); no traceback to show."""
 
 
 def _one_line(exc) -> str:
@@ -81,6 +87,8 @@ class Guarded:
         object.__setattr__(self, "_guard", (plugin, component, frozenset(methods)))
 
     def __getattr__(self, name):
+        if name in ("_obj", "_guard"):  # not yet set (copying, unpickling): no recursion
+            raise AttributeError(name)
         value = getattr(self._obj, name)
         plugin, component, methods = self._guard
         if name in methods and callable(value):
