@@ -260,7 +260,7 @@ def test_a_generator_that_yields_nothing_is_named_with_its_step(host):
     def empty(problem, step, world, rng):
         return iter(())
 
-    empty.label = "pose generator 'scripted:empty'"
+    empty.labels = {"take": "pose generator 'scripted:empty'"}
     result, _ = run(lambda *a: None, gen=empty, host=host)
     assert result.status == "unsolvable"
     assert "the pose generator 'scripted:empty' yielded no candidates for step 0 take(a, gp_a)" in result.reason

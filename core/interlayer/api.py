@@ -12,6 +12,7 @@ from .errors import UserError
 from .faults import ComponentFailed, Guarded, PluginFault, blame, blamed
 from .loop import InterfaceLayer, Interrupted, LoopSettings
 from .plugins import PluginHost
+from .refine import EpochState
 from .result import Result
 from .trace import Stats, Trace
 
@@ -110,24 +111,42 @@ class _TaskPlannerGuard(Guarded):
 
 
 def generators_for(host: PluginHost, model: TaskModel, config: dict) -> dict:
-    out = {}
+    """Action name -> its pose generator, its faults attributed to its plugin; each carries
+    ``labels`` (action -> "pose generator 'name'") for the loop's reports."""
+    out, classes = {}, {}
     for action in model.problem.domain.actions:
         name = config["pose_generators"].get(action.name, action.pose_generator)
         if name is None:
             raise UserError(f"The action '{action.name}' has no pose generator; set [pose_generators] {action.name} = \"...\".")
-        out[action.name] = _generator(host["pose_generators"].get(name))
+        comp = host["pose_generators"].get(name)
+        if isinstance(comp.factory, type) and issubclass(comp.factory, EpochState):
+            # one guarded subclass per class: the actions it serves still share one instance per epoch
+            if comp.factory not in classes:
+                classes[comp.factory] = _guarded_epoch_state(comp.factory, comp.plugin)
+            out[action.name] = classes[comp.factory]
+        else:
+            out[action.name] = _generator(comp)
+        out[action.name].labels[action.name] = comp.label
     return out
 
 
 def _generator(comp):
-    """A pose generator's candidates as a list, its faults attributed, its name kept for reports."""
+    """A pose generator's candidates as a list, its faults attributed."""
 
     def candidates(problem, step, world, rng):
         with blame(comp.plugin, comp.label):
             return list(comp.factory(problem, step, world, rng))
 
-    candidates.label = comp.label
+    candidates.labels = {}
     return candidates
+
+
+def _guarded_epoch_state(cls, plugin: str):
+    def __call__(self, problem, step, world, rng):
+        with blame(plugin, self.labels.get(step.action, f"pose generator '{cls.__name__}'")):
+            return list(cls.__call__(self, problem, step, world, rng))
+
+    return type(cls.__name__, (cls,), {"__call__": __call__, "labels": {}, "__qualname__": cls.__qualname__})
 
 
 def translators_for(host: PluginHost, config: dict) -> list:

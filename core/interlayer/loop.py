@@ -72,7 +72,7 @@ class InterfaceLayer:
                         plan=plan_json(res.plan), time=round(res.time, 4), reason=res.reason)
         if res.status == "error":
             raise RuntimeError(res.reason)
-        self.last_task_status, self.task_reason = res.status, res.reason
+        self.last_task_status = res.status
         return list(res.plan) if res.status == "solved" else None
 
     def make_generator(self, index: int, step: GroundStep, world) -> PoseGenerator:
@@ -83,7 +83,8 @@ class InterfaceLayer:
             with self.stats.timer("pose_generation"):
                 items = list(factory(problem, step, world, rng))
             if not items:
-                self.watch.generator_empty(getattr(factory, "label", f"pose generator of '{step.action}'"), index, step)
+                label = getattr(factory, "labels", {}).get(step.action, f"pose generator of '{step.action}'")
+                self.watch.generator_empty(label, index, step)
             return items
 
         return PoseGenerator(candidates, stable_seed(self.settings.seed, self.epoch, index, step))
@@ -155,8 +156,6 @@ class InterfaceLayer:
         if plan is None and (self.last_task_status == "timeout" or self._out_of_time()):
             return "timeout", f"the task planner found no plan for the initial state within the time limit of {self.settings.time_limit:g} s", None
         if plan is None:
-            if self.last_task_status == "timeout":
-                return "timeout", f"the task planner found no plan for the initial state in time ({self.task_reason})", None
             return "unsolvable", "the task planner found no plan for the initial state", None
         self.plan, states = plan, self.progress_all(init, plan)
         world0 = self.geometry.initial_world()
