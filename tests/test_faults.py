@@ -222,7 +222,9 @@ def test_a_hanging_task_planner_process_is_killed_at_its_limit(monkeypatch):
     t0 = time.perf_counter()
     result = api.solve(EXAMPLE, ["planner.task=pyperplan", "planner.time_limit=2"])
     assert time.perf_counter() - t0 < 10
-    assert result.status == "timeout" and "timed out" in result.reason
+    assert result.status == "timeout"
+    calls = [e for e in result.trace.events if e["type"] == "task_plan"]
+    assert calls[0]["status"] == "timeout" and "the task planner 'pyperplan' timed out" in calls[0]["reason"]
 
 
 def test_ctrl_c_during_plan_writes_the_trace_and_exits_130(plugin_dir, tmp_path):
