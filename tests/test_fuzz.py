@@ -342,3 +342,50 @@ def test_valid_gripper2d_scenes_solve_into_valid_plans(tmp_path, obstructions, s
 def test_valid_clutter_scenes_solve_into_valid_plans(tmp_path, objects, seed):
     solve_and_validate(tmp_path, str(ROOT / "examples" / "clutter.toml"),
                        {"problem.objects": objects, "planner.seed": seed, "planner.time_limit": 90.0}, "Clutter")
+
+
+# -- the validator accepts no invalid plan ------------------------------------------------------
+@pytest.fixture(scope="module")
+def solved_fig2(tmp_path_factory):
+    out = tmp_path_factory.mktemp("fig2") / "run"
+    result = api.solve(str(ROOT / "examples" / "gripper2d.toml"))
+    assert result.solved, result.reason
+    api.write_outputs(result, out)
+    assert api.validate(out) == []
+    return out
+
+
+@settings(FUZZ, max_examples=20)
+@given(kind=st.sampled_from(["wall waypoint", "jump", "drop grasp", "drop step", "swap steps"]), pick=st.integers(0, 10**6),
+       shift=st.floats(0.05, 0.5))
+def test_the_validator_rejects_corrupted_runs(solved_fig2, tmp_path, kind, pick, shift):
+    import shutil
+
+    out = tmp_path / "run"
+    shutil.copytree(solved_fig2, out, dirs_exist_ok=True)
+    result, trajectory = json.loads((out / "result.json").read_text()), json.loads((out / "trajectory.json").read_text())
+    steps = trajectory["steps"]
+    paths = [seg for s in steps for seg in s["segments"] if seg.get("kind") == "transit"]
+    wall = json.loads((out / "problem.json").read_text())["source"]["layout"]["walls"]["wall_end"]
+    if kind == "wall waypoint":
+        seg = paths[pick % len(paths)]
+        seg["path"].insert(1, [wall[0], wall[1], 0.0])
+    elif kind == "jump":
+        seg = paths[pick % len(paths)]
+        seg["path"][-1] = [seg["path"][-1][0] + shift, seg["path"][-1][1], seg["path"][-1][2]]
+    elif kind == "drop grasp":
+        s = [s for s in steps if any(seg.get("kind") == "grasp" for seg in s["segments"])][pick % 2]
+        s["segments"] = [seg for seg in s["segments"] if seg.get("kind") != "grasp"]
+    elif kind == "drop step":
+        k = pick % len(steps)
+        del steps[k], result["plan"][k]
+    else:
+        k = pick % (len(steps) - 1)
+        steps[k], steps[k + 1] = steps[k + 1], steps[k]
+        result["plan"][k], result["plan"][k + 1] = result["plan"][k + 1], result["plan"][k]
+    (out / "result.json").write_text(json.dumps(result))
+    (out / "trajectory.json").write_text(json.dumps(trajectory))
+    ROBUSTNESS["corrupted runs given to the validator"] += 1
+    violations = api.validate(out)
+    assert violations, (kind, pick, shift)
+    ROBUSTNESS["corrupted runs rejected"] += 1
