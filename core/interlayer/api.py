@@ -199,7 +199,7 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
     p = config["planner"]
     settings = LoopSettings(time_limit=float(p["time_limit"]), max_traj_count=p["max_traj_count"],
                             max_refine_attempts=p["max_refine_attempts"], task_timeout=float(p["task_timeout"]),
-                            seed=p["seed"])
+                            seed=p["seed"], shortcut=p["shortcut"])
     if hasattr(run.task, "prepare"):  # imports and translation before the clock starts
         run.task.prepare(model)
     if hasattr(run.motion, "prepare"):
