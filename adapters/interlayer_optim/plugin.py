@@ -1,8 +1,10 @@
 """Registers ``ik:cartesian`` and ``trajopt``."""
+import math
+
 from interlayer import hookimpl
 
 CARTESIAN_OPTIONS = {"time_limit": float, "step": float, "rot_step": float, "tolerance": float, "blend": float}
-TRAJOPT_OPTIONS = {"time_limit": float, "waypoints": int, "safety": float, "inits": int, "iterations": int, "seed": int}
+TRAJOPT_OPTIONS = {"time_limit": float, "waypoints": int, "safety": float, "inits": int, "iterations": int}
 SHARED = {"time_limit", "simplify", "resolution"}  # [motion_planner] keys meant for every planner
 
 
@@ -16,7 +18,8 @@ def _options(name, options, known):
     for key, kind in known.items():
         if key in options:
             value = options[key]
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or (kind is int and value != int(value)) or value <= 0:
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf \
+                    or (kind is int and value != int(value)):
                 raise UserError(f"Option {key} of motion planner '{name}' must be a positive {kind.__name__}, got {value!r}.")
             out[key] = kind(value)
     return out

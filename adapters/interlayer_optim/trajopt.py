@@ -29,11 +29,11 @@ STEP_SAMPLES = (0.5,)  # where clearances are also required between two waypoint
 class TrajOptPlanner(MotionPlanner):
     """Options: ``time_limit`` (s per query), ``waypoints`` (per trajectory, ends included),
     ``safety`` (m), ``inits`` (most initialisations per query), ``iterations`` (SCP iterations per
-    initialisation), ``seed`` (random via points)."""
+    initialisation). Random via points come from the run's seed (``planner.seed``)."""
 
-    def __init__(self, time_limit=2.0, waypoints=12, safety=0.02, inits=5, iterations=15, seed=0, options=None):
+    def __init__(self, time_limit=2.0, waypoints=12, safety=0.02, inits=5, iterations=15, options=None):
         super().__init__(name="trajopt", time_limit=time_limit, options=dict(options or {}))
-        self.waypoints, self.safety, self.inits, self.iterations, self.seed = waypoints, safety, inits, iterations, seed
+        self.waypoints, self.safety, self.inits, self.iterations = waypoints, safety, inits, iterations
 
     def _solve(self, query, relaxed, time_limit):
         if query.clearances is None:

@@ -1,4 +1,6 @@
 """Registers the PR2 pick-and-place domain and its pose generators."""
+import math
+
 from interlayer import hookimpl
 
 PARAMS = {"scene": "cubby", "goal": "hold", "grasps": ["side"], "target_radius": 0.035, "clutter": 0, "objects": 15,
@@ -21,7 +23,8 @@ def _timing(params):
     for key, n in (("arm_acceleration", 1), ("base_velocity", 3), ("base_acceleration", 3)):
         value = params.get(key, PARAMS[key])
         items = value if n > 1 and isinstance(value, list) else [value]
-        if len(items) != n or any(isinstance(v, bool) or not isinstance(v, (int, float)) or v <= 0 for v in items):
+        if len(items) != n or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < math.inf
+                                  for v in items):
             what = "a positive number" if n == 1 else "a list of three positive numbers (x, y, theta)"
             raise UserError(f"problem.{key} must be {what}, got {value!r}.")
         out[key] = value
@@ -89,7 +92,7 @@ def interlayer_register_domains(registry):
     registry.add("pr2", make_problem,
                  "a PR2 picks a cylinder from a cubby whose mouth another cylinder blocks (Fig. 3 actions, both arms); "
                  "scene = \"clutter\": the paper's cluttered table (Clutter-N, objects = N)",
-                 params=PARAMS)
+                 params=PARAMS, drawing="interlayer_pr2.draw")
 
 
 @hookimpl
