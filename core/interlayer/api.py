@@ -174,6 +174,7 @@ class Prepared:
     generators: dict
     translators: list
     stats: Stats
+    cartesian: object = None  # planner.cartesian, for a geometry with a ``cartesian`` attribute
 
 
 def prepare(source, overrides=None, host: PluginHost | None = None) -> Prepared:
@@ -186,8 +187,9 @@ def prepare(source, overrides=None, host: PluginHost | None = None) -> Prepared:
     model = abstract(problem)
     stats = Stats()
     task, motion = make_planners(host, config, stats)
+    cartesian = make_motion_planner(host, config, config["planner"]["cartesian"], stats)
     return Prepared(config, problem, model, task, motion, generators_for(host, model, config),
-                    translators_for(host, config), stats)
+                    translators_for(host, config), stats, cartesian)
 
 
 def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), pddl_dir=None) -> Result:
@@ -216,7 +218,7 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
     if hasattr(problem.geometry, "stats"):
         problem.geometry.stats = stats
     if hasattr(problem.geometry, "cartesian"):  # the domain plans straight-line end-effector segments
-        problem.geometry.cartesian = make_motion_planner(host, config, p["cartesian"], stats)
+        problem.geometry.cartesian = run.cartesian
     layer = InterfaceLayer(model, run.task, run.motion, run.generators, run.translators, settings, trace, stats)
     try:
         result = layer.solve()
