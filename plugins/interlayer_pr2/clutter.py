@@ -320,7 +320,7 @@ def _grasp_candidates(problem, world, obj, arm, tries, rng=None):
     # cached then), the caller's rng, so that every epoch searches afresh
     rng = np.random.default_rng(zlib.crc32(repr(key).encode())) if not misses or rng is None else rng
     x, y = P[0, 3], P[1, 3]
-    kinds = _problem_grasps(problem)
+    kinds = _problem_grasps(problem, obj)
     target = obj == geometry.layout.target
     want = 12 if target else 6
     n_bases = 3 * tries if target else tries

@@ -26,8 +26,10 @@ GRASP_CLEARANCE = 0.001  # the gripper must open at least this much wider than t
 DOWN = np.array([[0, 0, 1, 0], [0, 1, 0, 0], [-1, 0, 0, 0], [0, 0, 0, 1.0]])  # tool x pointing down
 
 
-def _problem_grasps(problem):
-    return problem.geometry.layout.grasps
+def _problem_grasps(problem, obj=None):
+    """Grasp kinds allowed for obj: the layout's, unless its extra "grasps_of" names some for obj."""
+    layout = problem.geometry.layout
+    return tuple(layout.extra.get("grasps_of", {}).get(obj, layout.grasps))
 
 
 def grasp_poses(geometry, name, P, heading, kinds, rng, n_side=5):
@@ -68,7 +70,7 @@ def check_graspable(problem, name):
     """Raise Infeasible when no grasp of the allowed kinds fits the gripper and the goal needs the object."""
     geometry = problem.geometry
     o = geometry.specs[name]
-    kinds = _problem_grasps(problem)
+    kinds = _problem_grasps(problem, name)
     rng = np.random.default_rng(0)
     found = any(grasp_poses(geometry, name, pose4(*o.pose), h, kinds, rng, n_side=1)
                 for h in np.linspace(-math.pi, math.pi, 8, endpoint=False))
@@ -136,7 +138,7 @@ def pick(problem, step, world, rng, limit: int = 6):
         kind, T, wps = planned
         n += 1
         yield Candidate(wps, {step.args[3]: T.tolist()}, f"{kind} grasp, tool yaw {math.degrees(_yaw(T)):.0f} deg")
-    for kind, T in grasp_poses(geometry, obj, P, heading, _problem_grasps(problem), rng):
+    for kind, T in grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng):
         wps = _waypoints(geometry, world, arm, T, kind, rng, ignore=(obj,))
         if wps is None:
             continue
@@ -191,7 +193,7 @@ def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries):
     check_graspable(problem, obj)
     P = world.objects[obj]
     x, y = P[0, 3], P[1, 3]
-    kinds = _problem_grasps(problem)
+    kinds = _problem_grasps(problem, obj)
     candidates = [tuple(world.base)] + [_annulus(rng, x, y) for _ in range(tries)]
     n = 0
     for i, base in enumerate(candidates):
