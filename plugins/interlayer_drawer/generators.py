@@ -4,9 +4,10 @@
   drawer from which IK reaches the handle (the grasp travels with the world to open_drawer); other
   base-pose references go to ``pr2:move_base``, except that a grasp of an object still unexposed in
   its drawer yields nothing at once.
-* ``drawer:open_drawer`` draws PULLS random pull distances within the joint's limits (stratified: one
-  from each of PULLS equal slices, in random order) and builds, by IK, the approach to the handle, the
-  straight pull with the gripper on it, and the retreat.
+* ``drawer:open_drawer`` draws PULLS random pull distances within the joint's limits and the arm's reach
+  (stratified: one from each of PULLS equal slices, in random order), keeps those that expose what
+  rides in the drawer for a top grasp, and builds, by IK, the approach to the handle, the straight pull
+  with the gripper on it, and the retreat.
 * ``drawer:pick`` is ``pr2:pick`` for objects that a top grasp can reach (see ``check.exposed``).
 """
 from __future__ import annotations
@@ -23,7 +24,7 @@ from interlayer_pr2.world import rz, trans
 from .check import exposed
 from .world import CABINET, DRAWER_LINK, HANDLE_GRIP, HANDLE_LINK
 
-PULLS = 8
+PULLS = 10
 PULL_STEP = 0.02  # m between IK waypoints of the pull (the gripper keeps ~5 mm off the bar between them)
 PRE_HANDLE = 0.10  # the approach to the handle starts this far back along the tool x axis
 RETREAT = 0.05  # the open gripper backs off the bar this far after the pull (the fingertips clear it)
@@ -158,14 +159,18 @@ def open_drawer(problem, step, world, rng, limit: int = PULLS):
         return
     edges = np.linspace(lo, hi, limit + 1)
     pulls = [float(rng.uniform(a, b)) for a, b in zip(edges, edges[1:])]
+    riders = [o for o, (b, _) in world.riders.items() if b == CABINET and o in world.objects]
     for d in (pulls[i] for i in rng.permutation(len(pulls))):
+        wd = geometry.with_joints(world, CABINET, [d])
+        if not all(reachable(geometry, wd, o) for o in riders):
+            continue  # the drawer is opened to take out what is in it
         k = max(i for i, p in enumerate(path) if p[-1] <= d + 1e-9)
         Td = body.carry(T, HANDLE_LINK, [d0], [d])
         u = geometry.ik(world.with_gripper(arm, HANDLE_GRIP), arm, Td, rng, seed=path[k][:7], attempts=2)
         if u is None or geometry.arm_space[arm].distance(u, path[k][:7]) > MAX_JUMP:
             continue
         pull = [*path[:k + 1], np.append(u, d)] if d - path[k][-1] > 1e-6 else path[:k + 1]
-        wd = geometry.with_joints(world, CABINET, [d]).with_gripper(arm, "open")
+        wd = wd.with_gripper(arm, "open")
         retreat = pr2._line(geometry, wd, arm, Td, lambda s: Td @ trans(-s, 0, 0), RETREAT, u, rng, (), "open")
         if retreat is None:
             continue

@@ -32,7 +32,7 @@ INNER = (0.03, 0.12)  # radius, height
 OUTER = (0.04, 0.22)
 TABLE_TOP = 0.72
 TABLE = ((0.35, -1.05), (0.5, 0.6))  # side table centre (x, y), size (x, y)
-MARGIN_O, MARGIN_N = 0.06, 0.05  # (O): the outer object this much beyond the first exposing pull, (N): short of it
+MARGIN_O, MARGIN_N = 0.08, 0.05  # (O): the outer object this much beyond the first exposing pull, (N): short of it
 
 
 def cabinet_urdf() -> str:

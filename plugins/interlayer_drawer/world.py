@@ -50,6 +50,10 @@ class DrawerGeometry(PR2Geometry):
         arm = step.args[1]
         approach, pull, retreat = cand.waypoints
         group, segs, w = f"{arm}_arm", [], world
+        blockers = self.sweep_blockers(w, CABINET, pull[-1][7:])
+        if blockers:
+            return StepOutcome(False, failure=Failure("obstruction", tuple(sorted(blockers)),
+                                                      "pull: the drawer runs into " + ", ".join(sorted(blockers))))
         res = self._plan(motion, self.arm_query(w, arm, w.arms[arm], approach[0], "handle transit", acc), "transit",
                          group, segs, _holding(w), w, acc)
         if not res.ok:

@@ -538,21 +538,36 @@ class PR2Geometry:
                 p = a + (b - a) * (i / steps)
                 yield self.with_joints(world, body, p[n:]).with_arm(arm, p[:n]), p[:n], p[n:]
 
-    def pull_hits(self, world, body, ignore=()) -> tuple[set, bool]:
-        """(movables in the way, whether something fixed is) at ``world``: the robot and held objects,
-        the body's moving elements and the objects riding on them, against everything else."""
+    def pull_hits(self, world, body, ignore=(), robot=True) -> tuple[set, bool]:
+        """(movables in the way, whether something fixed is) at ``world``: the robot and held objects
+        (unless ``robot`` is False), the body's moving elements and the objects riding on them, against
+        everything else."""
         q = self.sync(world)
         b = self.bodies[body]
         riders = {o for o, (name, _) in world.riders.items() if name == body}
         held = {o for o, _ in world.held.values()}
         others = [o for o in world.objects if o not in riders and o not in ignore]
+        hit, fixed = set(), False
         with self.stats.timer("collision_checking"):
-            hit = self.cw.colliding_movables(q) - held - set(ignore)
-            fixed = self.cw.in_collision(q, movables=False)
+            if robot:
+                hit = self.cw.colliding_movables(q) - held - set(ignore)
+                fixed = self.cw.in_collision(q, movables=False)
             hit |= b.touching(self.cw, world.joints[body], others)
             for o in riders & world.objects.keys():
                 hit |= self.cw.objects_overlap(o, world.objects[o]) & set(others)
         return hit, fixed
+
+    def sweep_blockers(self, world, body, values) -> set:
+        """Movables that the body's moving elements (and what rides on them) run into when its joints go
+        straight from their values in ``world`` to ``values`` (checked every RES_BASE): whatever the arm
+        does, such a pull is blocked, so check this first (cheap)."""
+        a, b = np.asarray(world.joints[body], float), np.asarray(values, float)
+        n = max(1, math.ceil(float(np.max(np.abs(b - a))) / RES_BASE))
+        for k in range(1, n + 1):
+            hit, _ = self.pull_hits(self.with_joints(world, body, a + (b - a) * k / n), body, robot=False)
+            if hit:
+                return hit
+        return set()
 
     def pull(self, step, world, arm, body, link, path, segs, kind="pull", fine=1) -> StepOutcome:
         """Drag ``link`` of ``body`` with the gripper along ``path`` (arm vector + joint values per point;
