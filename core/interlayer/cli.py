@@ -91,7 +91,10 @@ def cmd_check(args) -> int:
 
     config = api.resolve_config(args.source, args.set)
     host = PluginHost()
-    model = abstract(api.build_problem(host, config))
+    problem = api.build_problem(host, config)
+    model = abstract(problem)
+    describe = getattr(problem.geometry, "describe", None)  # the domain's own summary of the scene
+    scene = describe() if callable(describe) else None
     refs: dict = {}
     for ref, (sk, _) in model.references.items():
         refs.setdefault(sk, []).append(ref)
@@ -104,10 +107,13 @@ def cmd_check(args) -> int:
         "uniformity_violations": model.uniformity,
         "parameters": model.parameter_roles,
         "task_view": {a.name: [f"{v} - {t}" for v, t in a.parameters] for a in model.actions.values()},
+        **({"scene": scene} if scene else {}),
     }
     if args.json:
         print(json.dumps(report, indent=1))
         return EXIT_OK
+    if scene:
+        print(f"Scene: {scene}")
     print(f"Pose references ({len(model.references)}):")
     for sk, names in refs.items():
         print(f"  {sk}: {' '.join(names)}")

@@ -42,6 +42,8 @@ class Report:
         exp = "never" if self.first_exposed is None else f"from {self.first_exposed:.3f} m"
         s = (f"Drawer ({self.variant}): the drawer opens {self.pulls_free:.3f} m before it touches the outer object; "
              f"the inner object is exposed for a top grasp {exp} (grid {GRID_PULL * 1000:.0f} mm)")
+        if self.variant == "N" and self.holds:
+            s += "; no pull short of the outer object exposes it, so no base pose can reach it"
         if self.variant == "O":
             if self.witness:
                 d, b = self.witness

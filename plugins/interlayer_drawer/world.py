@@ -90,6 +90,13 @@ class DrawerGeometry(PR2Geometry):
             return _failure(res, "handle tuck")
         return StepOutcome(True, replace(w.with_arm(arm, TUCKED_ARMS[arm]), tloc={}), segs)
 
+    def describe(self) -> str:
+        """The scene's (O)/(N) property, checked on a fine grid (``interlayer check``)."""
+        from .check import check_property
+
+        exact = self if not self.padding else type(self)(self.layout, padding=0.0)
+        return check_property(exact).summary()
+
     def trajectory_json(self, plan, outcomes) -> dict:
         out = super().trajectory_json(plan, outcomes)
         out["domain"] = "pr2-drawer"
@@ -102,7 +109,9 @@ class DrawerGeometry(PR2Geometry):
     def draw_scene(self, scene, world=None):
         from interlayer_pr2 import draw
 
-        return draw.draw_scene(self, scene, world)
+        names = draw.draw_scene(self, scene, world)
+        names["top_drawer"] = f"bodies/{CABINET}/{DRAWER_LINK}"  # open_drawer's object: the drawer itself
+        return names
 
     def animation_frames(self, scene, trajectory):
         from interlayer_pr2 import draw
