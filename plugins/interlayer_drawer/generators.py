@@ -28,6 +28,7 @@ PULLS = 10
 PULL_STEP = 0.02  # m between IK waypoints of the pull (the gripper keeps ~5 mm off the bar between them)
 PRE_HANDLE = 0.10  # the approach to the handle starts this far back along the tool x axis
 RETREAT = 0.05  # the open gripper backs off the bar this far after the pull (the fingertips clear it)
+LIFT = 0.10  # ... and lifts it this far
 MIN_PULL = 0.03
 MAX_JUMP = 0.5  # rad: a longer joint-space step between two IK waypoints is a different IK branch
 
@@ -55,11 +56,27 @@ def move_base(problem, step, world, rng, limit: int = 6, tries: int = 120):
     if info is not None and info[0] == "bpfo":
         yield from _bases_for_handle(geometry, world, info[1][0], info[1][1], step.args[0], rng, limit, tries)
         return
-    if info is not None and info[0] == "bpfg" and not reachable(geometry, world, info[1][0]):
-        # no grasp yet (the drawer is not open far enough): stay, and let pick find nothing
-        yield Candidate((tuple(world.base),), {step.args[0]: list(world.base)}, f"stay ({info[1][0]} not exposed)")
+    if info is not None and info[0] == "bpfg" and info[1][0] in world.riders:
+        obj = info[1][0]
+        if not reachable(geometry, world, obj):
+            # no grasp yet (the drawer is not open far enough): stay, and let pick find nothing
+            yield Candidate((tuple(world.base),), {step.args[0]: list(world.base)}, f"stay ({obj} not exposed)")
+            return
+        yield from pr2.move_base(problem, step, world, rng, grasps=_rider_grasps(geometry, obj))
         return
     yield from pr2.move_base(problem, step, world, rng)
+
+
+def _rider_grasps(geometry, obj):
+    """Top grasps of an object in the drawer that clear the cabinet (check.exposed), for pr2's samplers."""
+    def grasps(world, heading, rng):
+        body = geometry.cabinet
+        d = world.joints[CABINET]
+        P0 = body.carry(world.objects[obj], DRAWER_LINK, d, body.zero())
+        yaws = [heading + a for a in np.linspace(0.0, math.pi, 6, endpoint=False)]
+        return [("top", T) for T in exposed(body, d[0], P0, pad=geometry.padding, yaws=yaws)]
+
+    return grasps
 
 
 def _bases_for_handle(geometry, world, drawer, arm, ref, rng, limit, tries):
@@ -171,9 +188,12 @@ def open_drawer(problem, step, world, rng, limit: int = PULLS):
             continue
         pull = [*path[:k + 1], np.append(u, d)] if d - path[k][-1] > 1e-6 else path[:k + 1]
         wd = wd.with_gripper(arm, "open")
-        retreat = pr2._line(geometry, wd, arm, Td, lambda s: Td @ trans(-s, 0, 0), RETREAT, u, rng, (), "open")
-        if retreat is None:
+        back = pr2._line(geometry, wd, arm, Td, lambda s: Td @ trans(-s, 0, 0), RETREAT, u, rng, (), "open")
+        if back is None:
             continue
+        Tb = Td @ trans(-RETREAT, 0, 0)  # then up, clear of the drawer, so that the arm can tuck
+        up = pr2._line(geometry, wd, arm, Tb, lambda s: trans(0, 0, s) @ Tb, LIFT, back[-1], rng, (), "open")
+        retreat = back + up[1:] if up is not None else back
         yield Candidate((approach, tuple(pull), tuple(retreat)), {pull_ref: d, hg_ref: T.tolist()}, f"pull {d:.3f} m")
 
 
@@ -194,9 +214,11 @@ def _pull_path(geometry, world, arm, T, v, d0, d, rng):
 
 
 def pick(problem, step, world, rng):
-    if not reachable(problem.geometry, world, step.args[0]):
-        return
-    yield from pr2.pick(problem, step, world, rng)
+    obj = step.args[0]
+    if obj not in world.riders:
+        yield from pr2.pick(problem, step, world, rng)
+    elif reachable(problem.geometry, world, obj):
+        yield from pr2.pick(problem, step, world, rng, grasps=_rider_grasps(problem.geometry, obj))
 
 
 __all__ = ["move_base", "open_drawer", "pick"]

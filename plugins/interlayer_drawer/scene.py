@@ -72,7 +72,7 @@ def cabinet_placement() -> np.ndarray:
 def inner_interior():
     """Body-frame x, y range of the inner object's centre (inside the drawer's walls)."""
     r = INNER[0]
-    return (0.05 + r, 0.30), (-(WIDTH - 0.08) / 2 + 0.02 + r, (WIDTH - 0.08) / 2 - 0.02 - r)
+    return (0.05 + r, 0.24), (-(WIDTH - 0.08) / 2 + 0.02 + r, (WIDTH - 0.08) / 2 - 0.02 - r)
 
 
 def make_layout(seed: int, variant: str) -> Layout:

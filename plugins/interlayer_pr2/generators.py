@@ -124,7 +124,8 @@ def _bearing(base, x, y):
     return math.atan2(y - base[1], x - base[0])
 
 
-def pick(problem, step, world, rng, limit: int = 6):
+def pick(problem, step, world, rng, limit: int = 6, grasps=None):
+    """``grasps(world, heading, rng) -> [(kind, tool pose)]`` replaces grasp_poses (a domain's own grasps)."""
     obj, arm = step.args[0], step.args[1]
     geometry = problem.geometry
     if world.holder(obj) is not None:
@@ -138,7 +139,8 @@ def pick(problem, step, world, rng, limit: int = 6):
         kind, T, wps = planned
         n += 1
         yield Candidate(wps, {step.args[3]: T.tolist()}, f"{kind} grasp, tool yaw {math.degrees(_yaw(T)):.0f} deg")
-    for kind, T in grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng):
+    offered = grasps(world, heading, rng) if grasps else grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng)
+    for kind, T in offered:
         wps = _waypoints(geometry, world, arm, T, kind, rng, ignore=(obj,))
         if wps is None:
             continue
@@ -155,7 +157,7 @@ def _yaw(T):
     return math.atan2(x[1], x[0])
 
 
-def move_base(problem, step, world, rng, limit: int = 6, tries: int = 150):
+def move_base(problem, step, world, rng, limit: int = 6, tries: int = 150, grasps=None):
     to = step.args[0]
     geometry = problem.geometry
     info = geometry.refs.get(to)
@@ -164,7 +166,7 @@ def move_base(problem, step, world, rng, limit: int = 6, tries: int = 150):
         return
     skolem, args = info
     if skolem == "bpfg":
-        yield from _bases_for_grasp(problem, world, args[0], args[1], to, rng, limit, tries)
+        yield from _bases_for_grasp(problem, world, args[0], args[1], to, rng, limit, tries, grasps)
     else:
         yield from _bases_for_putdown(problem, world, args[0], args[1], args[2], to, rng, limit, tries)
 
@@ -184,7 +186,7 @@ def _annulus(rng, x, y, rmin=0.45, rmax=0.80):
     return (float(bx), float(by), float(wrap(math.atan2(y - by, x - bx) + rng.uniform(-0.3, 0.3))))
 
 
-def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries):
+def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=None):
     from dataclasses import replace
 
     geometry = problem.geometry
@@ -201,7 +203,7 @@ def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries):
             continue
         w = replace(world, base=base)
         heading = _bearing(base, x, y)
-        for kind, T in grasp_poses(geometry, obj, P, heading, kinds, rng, n_side=2):
+        for kind, T in (grasps(w, heading, rng) if grasps else grasp_poses(geometry, obj, P, heading, kinds, rng, n_side=2)):
             wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,))
             if wps is not None:
                 n += 1
