@@ -205,3 +205,21 @@ def test_the_animation_slides_the_drawer(pulled_without_outer):
     assert xs[0] - xs[-1] == pytest.approx(final, abs=1e-6) and d["kind"] == "transit"
     inner = [f["inner"][0, 3] for f in frames]
     assert inner[0] - inner[-1] == pytest.approx(final, abs=1e-6)  # the object in the drawer rides along
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("variant", ["O", "N"])
+def test_drawer_solves_and_validates(tmp_path, variant):
+    """End to end with the real planners: (N) moves the outer object after learning that it blocks the
+    pull; both validate."""
+    import json
+
+    from interlayer.cli import main
+
+    out = tmp_path / variant
+    assert main(["plan", "examples/drawer.toml", "--set", f"problem.variant={variant}", "--out", str(out)]) == 0
+    assert main(["validate", str(out)]) == 0
+    result = json.loads((out / "result.json").read_text())
+    moved = any(s["action"] == "pick" and s["args"][0] == "outer" for s in result["plan"])
+    if variant == "N":
+        assert moved and "(PullObstructs outer pull_top_drawer)" in result["learned_facts"]

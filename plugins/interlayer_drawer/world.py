@@ -110,6 +110,7 @@ class DrawerGeometry(PR2Geometry):
         from interlayer_pr2 import draw
 
         names = draw.draw_scene(self, scene, world)
+        scene.view_direction = (0.15, -1.0, 0.85)  # from the cabinet's side: the drawer slides across the view
         names["top_drawer"] = f"bodies/{CABINET}/{DRAWER_LINK}"  # open_drawer's object: the drawer itself
         return names
 
