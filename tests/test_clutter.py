@@ -96,3 +96,31 @@ def test_papers_scene_as_shipped_is_unsolvable_by_gripper_width(tmp_path):
     assert time.perf_counter() - t0 < 30
     api.write_outputs(result, tmp_path)
     assert "problem" in (tmp_path / "config.toml").read_text()  # rebuildable: problem.file is recorded
+
+
+def test_a_reset_reseeds_the_clutter_pick_generator(host):
+    """Alg. 1, line 16: after a reset the pick generator samples other grasps for an object that has
+    not moved (its candidates used to be cached on the geometry across epochs)."""
+    from interlayer.abstraction import abstract
+    from interlayer.domain import GroundStep
+    from interlayer.loop import InterfaceLayer, LoopSettings
+
+    config = api.resolve_config(str(CONFIG), ["problem.objects=15", "planner.seed=0"])
+    problem = api.build_problem(host, config)
+    model = abstract(problem)
+    layer = InterfaceLayer(model, None, None, api.generators_for(host, model, config), [], LoopSettings())
+    t = problem.geometry.layout.target
+    step = GroundStep("pick", (t, "left", "right", f"bpfg_{t}_left", f"gpfg_{t}_left", f"gpfg_{t}_right"))
+    world = problem.geometry.initial_world()
+
+    def bases():
+        gen = layer.make_generator(0, step, world)
+        cands = [gen.reset_and_get_first()]
+        while (c := gen.get_next()) is not None:
+            cands.append(c)
+        return [tuple(c.waypoints[0]) for c in cands]
+
+    first = bases()
+    assert first and bases() == first  # stable within an epoch
+    layer.new_epoch()
+    assert set(bases()).isdisjoint(first)

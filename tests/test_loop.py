@@ -5,7 +5,7 @@ branch of the loop can be driven on purpose; the Gripper-2D tests exercise the r
 """
 
 from interlayer.abstraction import abstract
-from interlayer.domain import ActionSpec, DomainSpec, Problem, Skolem
+from interlayer.domain import ActionSpec, DomainSpec, GroundStep, Problem, Skolem
 from interlayer.loop import InterfaceLayer, LoopSettings
 from interlayer.refine import Candidate, Failure, Infeasible, StepOutcome
 
@@ -136,8 +136,100 @@ def test_max_traj_count_resets_learned_facts_and_reseeds(host):
         if e["type"] == "attempt":
             labels_by_epoch.setdefault(epoch, set()).add(e["candidate"])
     assert labels_by_epoch[0].isdisjoint(labels_by_epoch[1])
-    assert ("Obstructs", "z", "gp_a", "a") in result.learned_facts  # reported though the reset cleared it
     assert len(attempts) >= 5
+
+
+def test_reset_clears_learned_facts(host):
+    """Alg. 1, line 15: after MaxTrajCount the learned facts leave the state (the same failure is
+    learned again in the next epoch) and the result no longer reports them."""
+    def script(item, label, world, n):  # z (untakeable) blocks a for the first 4 refinements: dead ends
+        return Failure("obstruction", ("z",)) if n <= 4 else None
+
+    result, _ = run(script, host=host, max_traj_count=1)
+    assert result.status == "solved" and events(result, "reset")
+    fact = "(Obstructs z gp_a a)"
+    learned_in_epoch = {}
+    epoch = 0
+    for e in result.trace.events:
+        if e["type"] == "reset":
+            epoch = e["epoch"]
+        if e["type"] == "failure":
+            learned_in_epoch.setdefault(epoch, []).extend(e["facts"])
+    assert fact in learned_in_epoch[0] and fact in learned_in_epoch[1]
+    assert result.learned_facts == []  # the solving epoch learned nothing
+
+
+def test_plan_longer_than_the_attempt_budget_refines(host):
+    """Successful attempts do not count against max_refine_attempts: a 3-step plan refines with a
+    budget of 1 (it used to reset forever)."""
+    goal = "(and (Done a) (Done b) (Done y))"
+    result, _ = run(lambda *a: None, goal=goal, items=("a", "b", "y"), takeable=("a", "b", "y"), host=host,
+                    max_refine_attempts=1, time_limit=10.0)
+    assert result.status == "solved", result.reason
+    assert len(result.plan) == 3 and not events(result, "reset")
+
+
+def test_attempt_budget_grows_across_epochs(host):
+    """Every step's first candidate fails and teaches nothing: with a budget of one failure per step
+    the first epoch cannot refine; the next epoch's larger budget can."""
+    def script(item, label, world, n):
+        return Failure("unreachable") if label.startswith("c0") else None
+
+    goal = "(and (Done a) (Done b))"
+    result, _ = run(script, goal=goal, host=host, max_refine_attempts=1, time_limit=10.0)
+    assert result.status == "solved", result.reason
+    assert len(events(result, "reset")) == 1
+
+
+class LabelledGeometry(ScriptedGeometry):
+    """World = the (item, candidate) pairs taken so far, so the script can see earlier choices."""
+
+    def refine_step(self, step, world, candidate, motion):
+        self.calls += 1
+        failure = self.script(step.args[0], candidate.label, world, self.calls)
+        if failure:
+            return StepOutcome(False, failure=failure)
+        return StepOutcome(True, world | {(step.args[0], candidate.label[:2])}, [{"took": step.args[0]}])
+
+
+def test_backtracks_to_an_earlier_step_when_a_generator_is_exhausted(host):
+    """Alg. 2, lines 7-10: step 1 refines only if step 0 took its second candidate; every candidate
+    of step 1 fails after step 0's first, so TryRefine must go back and advance step 0."""
+    def script(item, label, world, n):
+        if world and next(iter(world))[1] == "c0":
+            return Failure("unreachable")
+        return None
+
+    problem = Problem(SPEC, {i: "item" for i in ("a", "b")}, frozenset(("Takeable", t) for t in "ab"),
+                      "(and (Done a) (Done b))", LabelledGeometry(script), {})
+    task = host["task_planners"].get("fast-downward").factory({})
+    translators = [("templates", host["failure_translators"].get("templates").factory)]
+    layer = InterfaceLayer(abstract(problem), task, None, {"take": generator()}, translators,
+                           LoopSettings(time_limit=10.0, max_traj_count=1))
+    result = layer.solve()
+    assert result.status == "solved", result.reason
+    assert not events(result, "reset") and result.task_planner_calls == 1
+    tried = [(e["step"], e["candidate"][:2], e["ok"]) for e in events(result, "attempt") if e["mode"] == "error-free"]
+    assert tried == [(0, "c0", True), (1, "c0", False), (1, "c1", False), (0, "c1", True), (1, "c0", True)]
+
+
+def test_a_reset_reseeds_epoch_state_generators(host):
+    """A generator that keeps state (an EpochState) gets a fresh, reseeded instance after a reset."""
+    from interlayer.refine import EpochState
+
+    class Sampler(EpochState):
+        def __call__(self, problem, step, world, rng):
+            for k in range(2):
+                yield Candidate((k,), {}, f"c{k}-{self.rng_for(step.args[0]).integers(10**9)}")
+
+    problem = Problem(SPEC, {"a": "item"}, frozenset({("Takeable", "a")}), "(Done a)",
+                      ScriptedGeometry(lambda *a: None), {})
+    layer = InterfaceLayer(abstract(problem), None, None, {"take": Sampler}, [], LoopSettings())
+    step = GroundStep("take", ("a", "gp_a"))
+    first = layer.make_generator(0, step, frozenset()).reset_and_get_first().label
+    assert layer.make_generator(0, step, frozenset()).reset_and_get_first().label == first  # same epoch
+    layer.new_epoch()
+    assert layer.make_generator(0, step, frozenset()).reset_and_get_first().label != first
 
 
 def test_time_limit_is_honoured(host):

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from . import logic
 from .abstraction import TaskModel
 from .domain import GroundStep
-from .refine import Infeasible, PoseGenerator, Refiner, stable_seed
+from .refine import EpochState, Infeasible, PoseGenerator, Refiner, stable_seed
 from .result import Result
 from .trace import Stats, Trace
 
@@ -40,7 +40,8 @@ class InterfaceLayer:
         self.trace = trace or Trace()
         self.stats = stats or Stats()
         self.epoch = 0  # bumped by every MaxTrajCount reset: reseeds the pose generators
-        self.learned: list = []
+        self._epoch_states: dict = {}  # EpochState class -> its instance for this epoch
+        self.learned: list = []  # facts learned in this epoch (a reset clears them)
         self.task_calls = 0
         self.replans = 0
 
@@ -64,7 +65,7 @@ class InterfaceLayer:
         return list(res.plan) if res.status == "solved" else None
 
     def make_generator(self, index: int, step: GroundStep, world) -> PoseGenerator:
-        factory = self.generators[step.action]
+        factory = self._generator(step.action)
         problem = self.model.problem
 
         def candidates(rng):
@@ -73,6 +74,22 @@ class InterfaceLayer:
             return items
 
         return PoseGenerator(candidates, stable_seed(self.settings.seed, self.epoch, index, step))
+
+    def _generator(self, action: str):
+        """The action's generator function; an ``EpochState`` subclass gets one fresh instance per
+        epoch, shared by every action it serves (Alg. 1, line 16: reset with a new random seed)."""
+        factory = self.generators[action]
+        if not (isinstance(factory, type) and issubclass(factory, EpochState)):
+            return factory
+        if factory not in self._epoch_states:
+            self._epoch_states[factory] = factory(stable_seed(self.settings.seed, self.epoch, factory.__qualname__))
+        return self._epoch_states[factory]
+
+    def new_epoch(self):
+        """Alg. 1, lines 15-16: forget the learned facts and reseed the pose generators."""
+        self.epoch += 1
+        self._epoch_states.clear()
+        self.learned = []
 
     def translate(self, failure, step: GroundStep) -> set:
         facts = set()
@@ -114,6 +131,8 @@ class InterfaceLayer:
         init = self.model.init
         self.plan = []
         plan = self.call_task_planner(init, 0)  # line 2
+        if plan is None and (self.last_task_status == "timeout" or self._out_of_time()):
+            return "timeout", f"the task planner found no plan for the initial state within the time limit of {self.settings.time_limit:g} s", None
         if plan is None:
             return "unsolvable", "the task planner found no plan for the initial state", None
         self.plan, states = plan, self.progress_all(init, plan)
@@ -162,7 +181,8 @@ class InterfaceLayer:
                 if traj_count >= self.settings.max_traj_count or self._out_of_time():
                     break
             if new_plan is None and not self._out_of_time():  # lines 14-17
-                self.epoch += 1
+                self.new_epoch()
+                refiner.max_attempts = self.settings.max_refine_attempts * (self.epoch + 1)
                 states = self.progress_all(init, self.plan)  # learned facts cleared
                 step, prefix, world = 0, {}, world0
                 self.trace.emit("reset", epoch=self.epoch, traj_count=traj_count,

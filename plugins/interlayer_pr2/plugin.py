@@ -75,8 +75,8 @@ def interlayer_register_pose_generators(registry):
     registry.add("pr2:move_base", generators.move_base, "base poses in an annulus around the object or put-down spot")
     registry.add("pr2:pick", generators.pick, "side (and top) grasps with pre-grasp and raise waypoints, by IK")
     registry.add("pr2:place", generators.place, "the put-down spot chosen by move_base and nearby variants, by IK")
-    registry.add("pr2c:pick", clutter.pick, "clutter: base pose + side grasp (move_base folded in), fewest objects in the way first")
-    registry.add("pr2c:place", clutter.place, "clutter: a free table spot far from the target and others + base pose, by IK")
+    registry.add("pr2c:pick", clutter.ClutterSampler, "clutter: base pose + side grasp (move_base folded in), fewest objects in the way first")
+    registry.add("pr2c:place", clutter.ClutterSampler, "clutter: a free table spot far from the target and others + base pose, by IK")
 
 
 @hookimpl
