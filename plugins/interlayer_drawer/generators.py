@@ -50,7 +50,7 @@ def reachable(geometry, world, obj) -> bool:
     return bool(exposed(body, d[0], P0, pad=geometry.padding))
 
 
-def move_base(problem, step, world, rng, limit: int = 6, tries: int = 120):
+def move_base(problem, step, world, rng, limit: int = 6, tries: int = 200):
     geometry = problem.geometry
     info = geometry.refs.get(step.args[0])
     if info is not None and info[0] == "bpfo":
@@ -91,9 +91,9 @@ def _bases_for_handle(geometry, world, drawer, arm, ref, rng, limit, tries):
     sweep = [geometry.with_joints(world, CABINET, [d]) for d in np.linspace(d0[0], body.upper[0], 9)[1:]]
     found = []
     for _ in range(tries):
-        bx, by = hx + rng.uniform(-1.0, 0.1), hy + rng.uniform(-0.9, 0.9)
-        if not 0.4 <= math.hypot(bx - hx, by - hy) <= 0.85:
-            continue
+        # in front of the handle or beside the cabinet (away from the wall behind it)
+        r, a = rng.uniform(0.45, 0.85), math.pi + rng.uniform(-1.6, 1.6)
+        bx, by = hx + r * math.cos(a), hy + r * math.sin(a)
         base = (float(bx), float(by), float(pr2.wrap(math.atan2(hy - by, hx - bx) + rng.uniform(-0.4, 0.4))))
         # out of the drawer's way: free (arms tucked) wherever the drawer may be pulled
         if not (pr2._base_free(geometry, world, base) and all(pr2._base_free(geometry, s, base) for s in sweep)):
@@ -101,20 +101,21 @@ def _bases_for_handle(geometry, world, drawer, arm, ref, rng, limit, tries):
         w = replace(world, base=base)
         T = H @ rz(rng.uniform(-0.4, 0.4))  # any yaw about the vertical bar grips it
         v = geometry.ik(w.with_gripper(arm, "open"), arm, T, rng, attempts=4)
-        if v is None:
+        approach = None if v is None else _approach(geometry, w, arm, T, v, rng)
+        if approach is None:
             continue
         path = _pull_path(geometry, w.with_gripper(arm, HANDLE_GRIP), arm, T, v, d0[0], float(geometry.cabinet.upper[0]), rng)
         if path[-1][-1] - d0[0] < MIN_PULL:
             continue
-        found.append((base, T, path))
+        found.append((base, T, path, approach))
         if len(found) >= 2 * limit:
             break
     # the inner object's place decides where to stand: first the bases from which the other arm (or
     # this one) also reaches what rides in the drawer at the most pull distances, then the longest pulls
-    ranked = sorted(((_reach_riders(geometry, world, base, path, rng), path[-1][-1], i, base, T, path)
-                     for i, (base, T, path) in enumerate(found)), key=lambda f: (-f[0], -f[1], f[2]))
-    for n, dmax, _, base, T, path in ranked[:limit]:
-        yield Candidate((base,), {ref: list(base), "grasp": (("handle", drawer, arm), (T, path))},
+    ranked = sorted(((_reach_riders(geometry, world, base, path, rng), path[-1][-1], i, base, T, path, approach)
+                     for i, (base, T, path, approach) in enumerate(found)), key=lambda f: (-f[0], -f[1], f[2]))
+    for n, dmax, _, base, T, path, approach in ranked[:limit]:
+        yield Candidate((base,), {ref: list(base), "grasp": (("handle", drawer, arm), (T, path, approach))},
                         f"base at {pr2._fmt(base)} for the handle (pulls up to {dmax:.2f} m, reaches the drawer's "
                         f"contents at {n} of {len(REACH_PULLS)} pulls)")
 
@@ -162,15 +163,12 @@ def open_drawer(problem, step, world, rng, limit: int = PULLS):
         v = geometry.ik(world.with_gripper(arm, "open"), arm, T, rng, attempts=8)
         if v is None:
             return
+        approach = _approach(geometry, world, arm, T, v, rng)
+        if approach is None:
+            return
         path = _pull_path(geometry, world.with_gripper(arm, HANDLE_GRIP), arm, T, v, d0, float(body.upper[0]), rng)
     else:
-        T, path = planned
-    v = path[0][:7]
-    wo = world.with_gripper(arm, "open")
-    back = pr2._line(geometry, wo, arm, T, lambda s: T @ trans(-s, 0, 0), PRE_HANDLE, v, rng, (), "open")
-    if back is None or not geometry.static_path_ok(wo, arm, back):
-        return
-    approach = tuple(reversed(back))
+        T, path, approach = planned
     lo, hi = d0 + MIN_PULL, float(path[-1][-1])  # bounded by the joint's limit and by the arm's reach
     if hi <= lo:
         return
@@ -195,6 +193,15 @@ def open_drawer(problem, step, world, rng, limit: int = PULLS):
         up = pr2._line(geometry, wd, arm, Tb, lambda s: trans(0, 0, s) @ Tb, LIFT, back[-1], rng, (), "open")
         retreat = back + up[1:] if up is not None else back
         yield Candidate((approach, tuple(pull), tuple(retreat)), {pull_ref: d, hg_ref: T.tolist()}, f"pull {d:.3f} m")
+
+
+def _approach(geometry, world, arm, T, v, rng):
+    """IK waypoints from PRE_HANDLE behind the handle grasp T to T (arm vector v there), or None."""
+    wo = world.with_gripper(arm, "open")
+    back = pr2._line(geometry, wo, arm, T, lambda s: T @ trans(-s, 0, 0), PRE_HANDLE, v, rng, (), "open")
+    if back is None or not geometry.static_path_ok(wo, arm, back):
+        return None
+    return tuple(reversed(back))
 
 
 def _pull_path(geometry, world, arm, T, v, d0, d, rng):

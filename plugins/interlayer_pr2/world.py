@@ -578,7 +578,7 @@ class PR2Geometry:
             hit, fixed = self.pull_hits(w, body)
             if hit:
                 return StepOutcome(False, failure=Failure("obstruction", tuple(sorted(hit)),
-                                                          f"{kind}: {body} runs into " + ", ".join(sorted(hit))))
+                                                          f"{kind}: the arm or {body} runs into " + ", ".join(sorted(hit))))
             if fixed:
                 return StepOutcome(False, failure=Failure("unreachable", (), f"{kind}: collides with fixed obstacles"))
             last = w
