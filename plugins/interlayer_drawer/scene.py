@@ -101,7 +101,7 @@ def make_layout(seed: int, variant: str) -> Layout:
     block = float(rng.uniform(lo, hi))
     # the outer object touches the drawer's front plate (beside the handle) at pull `block`
     xo = FRONT - PLATE - block - r_o - 1e-3
-    yo = float(rng.choice([-1.0, 1.0]) * rng.uniform(0.08, 0.20))
+    yo = float(rng.choice([-1.0, 1.0]) * rng.uniform(0.14, 0.22))  # clear of the hand on the handle
     sx, sy, sz = STAND
     fixed = [ObjectSpec("stand", "box", STAND, (xo, yo, sz / 2, 0.0), movable=False)]
     (tx, ty), (tsx, tsy) = TABLE
