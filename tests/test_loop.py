@@ -250,3 +250,79 @@ def test_infeasible_reference_ends_unsolvable(host):
 
     result, _ = run(lambda *a: None, gen=gen, host=host)
     assert result.status == "unsolvable" and result.reason == "a is too wide for the gripper"
+
+
+def _refined(problem, model, plan):
+    """The plan refined by TryRefine (with the candidates each step used), as the loop would."""
+    from interlayer.loop import _drain
+    from interlayer.refine import Refiner
+
+    layer = InterfaceLayer(model, None, None, {"take": generator()}, [], LoopSettings())
+    done = _drain(Refiner(problem.geometry, None, layer.make_generator, 2, lambda: False)
+                  .try_refine(plan, 0, frozenset(), {}, partial=False))
+    return [done.outcomes[i] for i in range(len(plan))]
+
+
+def _shortcut(problem, model, plan, outcomes, state):
+    from interlayer.shortcut import shortcut
+    from interlayer.trace import Stats
+
+    dropped = []
+    short, out = shortcut(plan, outcomes, model, state, problem.geometry, None, frozenset(), lambda: False,
+                          lambda d, p: dropped.append(d), Stats())
+    return short, out, dropped
+
+
+def test_shortcut_drops_steps_the_plan_does_not_need():
+    """A step that the goal does not need and whose removal still refines is dropped; a step that a
+    learned obstruction makes necessary is kept; later steps keep the pose values they had."""
+    problem = Problem(SPEC, {i: "item" for i in "aby"}, frozenset(("Takeable", t) for t in "aby"), "(Done a)",
+                      ScriptedGeometry(lambda *a: None), {})
+    model = abstract(problem)
+    plan = [GroundStep("take", ("b", "gp_b")), GroundStep("take", ("y", "gp_y")), GroundStep("take", ("a", "gp_a"))]
+    outcomes = _refined(problem, model, plan)
+    short, out, dropped = _shortcut(problem, model, plan, outcomes, model.init)
+    assert short == plan[2:] and len(out) == 1 and out[0].world == frozenset({"a"}) and dropped
+    assert out[0].candidate == outcomes[2].candidate
+    learned = model.init | {("Obstructs", "b", "gp_a", "a")}  # b stood in a's way: taking b stays
+    short, _, _ = _shortcut(problem, model, plan, outcomes, learned)
+    assert short == [plan[0], plan[2]]
+
+
+def test_shortcut_keeps_a_step_whose_removal_does_not_refine():
+    def script(item, label, world, n):  # a can be taken only once b is gone: geometry, not learned
+        return Failure("unreachable") if item == "a" and "b" not in world else None
+
+    problem = Problem(SPEC, {i: "item" for i in "ab"}, frozenset(("Takeable", t) for t in "ab"), "(Done a)",
+                      ScriptedGeometry(script), {})
+    model = abstract(problem)
+    plan = [GroundStep("take", ("b", "gp_b")), GroundStep("take", ("a", "gp_a"))]
+    outcomes = _refined(problem, model, plan)
+    short, out, dropped = _shortcut(problem, model, plan, outcomes, model.init)
+    assert short == plan and out == outcomes and not dropped
+
+
+def test_shortcut_is_optional(host):
+    result, _ = run(lambda *a: None, host=host)
+    assert result.counts["plan_length_before_shortcut"] == result.counts["plan_length"] == 1
+    result, _ = run(lambda *a: None, host=host, shortcut=False)
+    assert "plan_length" not in result.counts
+
+
+def test_shortcut_compares_worlds_structurally():
+    """Once a redone step leaves the world as it was, shortcutting keeps the rest of the refinement."""
+    from dataclasses import dataclass
+
+    import numpy as np
+    from interlayer.shortcut import same
+
+    @dataclass(frozen=True)
+    class W:
+        base: tuple
+        objects: dict
+
+    a = W((1.0, 2.0, 0.5), {"o": np.eye(4), "p": ("grasp", np.ones(3))})
+    assert same(a, W((1.0, 2.0, 0.5), {"o": np.eye(4), "p": ("grasp", np.ones(3))}))
+    assert not same(a, W((1.0, 2.0, 0.6), {"o": np.eye(4), "p": ("grasp", np.ones(3))}))
+    assert not same(a, W((1.0, 2.0, 0.5), {"o": np.eye(4)}))
+    assert not same(a, W((1.0, 2.0, 0.5), {"o": 2 * np.eye(4), "p": ("grasp", np.ones(3))}))

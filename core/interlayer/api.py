@@ -96,7 +96,7 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
     p = config["planner"]
     settings = LoopSettings(time_limit=float(p["time_limit"]), max_traj_count=p["max_traj_count"],
                             max_refine_attempts=p["max_refine_attempts"], task_timeout=float(p["task_timeout"]),
-                            seed=p["seed"])
+                            seed=p["seed"], shortcut=p["shortcut"])
     trace = Trace([host.on_event, *listeners])
     trace.emit("start", problem=problem.name, references=len(model.references), config=config)
     if hasattr(problem.geometry, "stats"):

@@ -15,8 +15,9 @@ PLANNER_DEFAULTS = {
     "time_limit": 120.0,
     "task_timeout": 60.0,
     "max_traj_count": 10,
-    "max_refine_attempts": 40,
+    "max_refine_attempts": 8,  # failed attempts per plan step in one TryRefine call (x epoch + 1)
     "translators": ["templates"],
+    "shortcut": True,
 }
 SECTIONS = ("problem", "planner", "task_planner", "motion_planner", "pose_generators", "visualizer")
 
@@ -86,6 +87,8 @@ def check(config: dict, domain_params: dict | None) -> None:
     for key in ("seed", "max_traj_count", "max_refine_attempts"):
         if not isinstance(p[key], int) or isinstance(p[key], bool) or p[key] < 0:
             raise UserError(f"planner.{key} must be a non-negative integer, got {p[key]!r}.")
+    if not isinstance(p["shortcut"], bool):
+        raise UserError(f"planner.shortcut must be true or false, got {p['shortcut']!r}.")
     for key in ("time_limit", "task_timeout"):
         if not isinstance(p[key], (int, float)) or p[key] <= 0:
             raise UserError(f"planner.{key} must be a positive number of seconds, got {p[key]!r}.")

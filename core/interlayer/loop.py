@@ -16,9 +16,10 @@ from .trace import Stats, Trace
 class LoopSettings:
     time_limit: float = 600.0
     max_traj_count: int = 10
-    max_refine_attempts: int = 40
+    max_refine_attempts: int = 8  # failed attempts per plan step in one TryRefine call, x (epoch + 1)
     task_timeout: float = 60.0
     seed: int = 0
+    shortcut: bool = True  # drop useless steps after a solve (shortcut.py)
 
 
 def plan_json(plan) -> list:
@@ -110,6 +111,20 @@ class InterfaceLayer:
                         action=str(self.plan[step]), candidate=candidate.label, ok=outcome.ok, cached=cached,
                         failure=outcome.failure.to_json() if outcome.failure else None)
 
+    def _shortcut(self, init, world0, outcomes):
+        """Drop steps the solved plan does not need (beyond the paper; see shortcut.py)."""
+        from .shortcut import shortcut
+
+        def accepted(dropped, shorter):
+            self.trace.emit("shortcut", dropped=plan_json(dropped), plan=plan_json(shorter))
+
+        before = len(self.plan)
+        self.plan, outcomes = shortcut(self.plan, outcomes, self.model, init | frozenset(self.learned), self.geometry,
+                                       self.motion, world0, self._out_of_time, accepted, self.stats)
+        self.stats.count("plan_length_before_shortcut", before)
+        self.stats.count("plan_length", len(self.plan))
+        return outcomes
+
     # -- Alg. 1 -----------------------------------------------------------------------------
     def solve(self) -> Result:
         t0 = time.perf_counter()
@@ -150,7 +165,10 @@ class InterfaceLayer:
                     why = self.task_planner.validate_plan(self.model, init, self.plan)
                 if why:
                     raise RuntimeError(f"the final task plan failed validation: {why}")
-                return "solved", "", [done.outcomes[i] for i in range(len(self.plan))]  # line 6
+                outcomes = [done.outcomes[i] for i in range(len(self.plan))]
+                if self.settings.shortcut:
+                    outcomes = self._shortcut(init, world0, outcomes)
+                return "solved", "", outcomes  # line 6
             if self._out_of_time():
                 break
             self.trace.emit("refine", mode="partial", from_step=step, plan=plan_json(self.plan), epoch=self.epoch)

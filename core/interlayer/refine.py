@@ -8,7 +8,7 @@ and in partial-trajectory mode yields each failure with the prefix that was refi
 from __future__ import annotations
 
 import zlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Iterable, Iterator, Mapping, Protocol
 
 import numpy as np
@@ -45,6 +45,7 @@ class StepOutcome:
     world: Any = None
     segments: list = field(default_factory=list)
     failure: Failure | None = None
+    candidate: Candidate | None = None  # what was refined (set by TryRefine on success)
 
 
 class Infeasible(Exception):
@@ -178,7 +179,7 @@ class Refiner:
                     failures[i] = failures.get(i, 0) + 1
             self.on_attempt(step=i, candidate=cand, outcome=outcome, partial=partial, cached=cached)
             if outcome.ok:  # line 12
-                outcomes[i], worlds[i + 1] = outcome, outcome.world
+                outcomes[i], worlds[i + 1] = replace(outcome, candidate=cand), outcome.world
                 chain.append(gen.index)
                 i += 1
                 if i < n:

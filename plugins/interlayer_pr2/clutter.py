@@ -25,9 +25,9 @@ from dataclasses import replace
 import numpy as np
 from interlayer.domain import ActionSpec, DomainSpec, Problem, Skolem
 from interlayer.errors import UserError
-from interlayer.refine import Candidate, EpochState
+from interlayer.refine import Candidate, EpochState, stable_seed
 
-from .scene import REST_GAP, Layout, ObjectSpec, table_top
+from .scene import REST_GAP, Layout, ObjectSpec, base_limits, table_top
 from .world import pose4
 
 log = logging.getLogger("interlayer.pr2")
@@ -38,6 +38,7 @@ CLUTTER_BASE_LIMITS = ((-1.0, 3.0), (-2.0, 2.0))
 RADIUS, HEIGHT = 0.04, 0.2
 SLOTS = 2
 TORSO = 0.28  # the cubby scene uses 0.2 at a 0.72 m table; the clutter table is 0.08 m higher
+BASE_CLEARANCE = 0.34  # m: the base centre keeps this far from the table's edge (half the PR2's footprint)
 
 CLUTTER_DOMAIN = DomainSpec(
     name="pr2-clutter",
@@ -93,9 +94,10 @@ CLUTTER_DOMAIN = DomainSpec(
 
 
 # -- scenes ------------------------------------------------------------------------------------------
-def clutter_layout(seed: int, n: int) -> Layout:
+def clutter_layout(seed: int, n: int, approach: str = "free") -> Layout:
     """Clutter-N: N cylinders (r 0.04, h 0.2) at uniformly random non-overlapping spots (>= 1 cm apart,
-    >= 2 cm inside the edge) of a 0.95 x 1.2 table (top z 0.8) centred at (1.375, 0); a random target."""
+    >= 2 cm inside the edge) of a 0.95 x 1.2 table (top z 0.8) centred at (1.375, 0); a random target.
+    ``approach = "front"`` keeps the base on the table's near long side (x below its edge at 0.9 m)."""
     rng = np.random.default_rng(seed)
     (cx, cy), (sx, sy), top = CLUTTER_TABLE["centre"], CLUTTER_TABLE["size"], CLUTTER_TABLE["top"]
     fixed = [ObjectSpec("table", "box", (sx, sy, top), (cx, cy, top / 2, 0.0), movable=False)]
@@ -114,8 +116,11 @@ def clutter_layout(seed: int, n: int) -> Layout:
     objects = [ObjectSpec(f"o{i + 1}", "cylinder", (RADIUS, HEIGHT), (x, y, z, 0.0)) for i, (x, y) in enumerate(pts)]
     target = objects[int(rng.integers(n))].name
     regions = {"table": (cx - sx / 2, cx + sx / 2, cy - sy / 2, cy + sy / 2)}
+    limits = CLUTTER_BASE_LIMITS
+    if approach == "front":
+        limits = ((limits[0][0], cx - sx / 2 - BASE_CLEARANCE), limits[1])
     return Layout(fixed, objects, regions, target, "hold", ("side",),
-                  extra={"table_top": top, "base_limits": CLUTTER_BASE_LIMITS, "torso_height": TORSO})
+                  extra={"table_top": top, "base_limits": limits, "torso_height": TORSO, "approach": approach})
 
 
 def clutter_problem(layout: Layout, source: dict, name: str, slots: int = SLOTS) -> Problem:
@@ -141,9 +146,33 @@ def make_clutter_problem(params, seed):
     if params.get("goal", "hold") != "hold" or list(params.get("grasps", ["side"])) != ["side"]:
         raise UserError("The clutter scene's goal is fixed (hold the target, side grasps only): "
                         "leave problem.goal and problem.grasps at their defaults.")
-    layout = clutter_layout(seed, n)
-    return clutter_problem(layout, {"domain": "pr2", "params": dict(params), "seed": seed, "layout": layout.to_json()},
-                           f"pr2-clutter{n}")
+    approach = params.get("approach", "free")
+    if approach not in ("free", "front"):
+        raise UserError(f"problem.approach must be \"free\" (drive around the table) or \"front\" (stay on its near "
+                        f"side), got {approach!r}.")
+    layout = clutter_layout(seed, n, approach)
+    problem = clutter_problem(layout, {"domain": "pr2", "params": dict(params), "seed": seed}, f"pr2-clutter{n}")
+    if approach == "front":
+        _reachable_target(problem, np.random.default_rng([seed, n]))
+    problem.source["layout"] = layout.to_json()
+    return problem
+
+
+def _reachable_target(problem, rng):
+    """Front approach: make the target an object that the PR2 can grasp from the near side when
+    nothing is in the way (IK and fixed obstacles only), so that every scene is solvable."""
+    layout, geometry = problem.geometry.layout, problem.geometry
+    world = geometry.initial_world()
+    sampler = ClutterSampler(stable_seed("front", layout.target))
+    edge = layout.regions["table"][0]
+    near = [o.name for o in layout.objects if o.pose[0] < edge + 0.6]  # beyond this no arm reaches
+    for name in [near[k] for k in rng.permutation(len(near))]:
+        if any(sampler.grasp_candidates(problem, world, name, arm) for arm in ARMS):
+            layout.target = name
+            problem.goal = f"(or (Holding {name} left) (Holding {name} right))"
+            return
+    raise UserError("problem.approach=\"front\": no object of this scene can be grasped from the table's near side; "
+                    "choose another planner.seed.")
 
 
 # -- the pybullet-planning JSON format ----------------------------------------------------------------
@@ -240,11 +269,14 @@ def _base_near(geometry, x, y, rng, reach=(0.55, 0.95)):
     from .generators import wrap
 
     xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
+    (lx, hx), (ly, hy) = base_limits(geometry.layout)
     for _ in range(20):
         r, a = rng.uniform(*reach), rng.uniform(-math.pi, math.pi)
         bx, by = x + r * math.cos(a), y + r * math.sin(a)
         if xmin - 0.33 < bx < xmax + 0.33 and ymin - 0.33 < by < ymax + 0.33:
             continue  # the base would stand under the table
+        if not (lx <= bx <= hx and ly <= by <= hy):
+            continue
         yaw = math.atan2(y - by, x - bx) + rng.uniform(-0.35, 0.35)
         return (float(bx), float(by), float(wrap(yaw)))
     return None
@@ -476,7 +508,8 @@ def _table_spots(geometry, world, obj, rng, tries, want=12):
     m = o.size[0] + 0.02
     z = table_top(geometry.layout) + o.height / 2 + REST_GAP
     n = max(tries, 40) * 25
-    pts = np.column_stack([rng.uniform(xmin + m, xmax - m, n), rng.uniform(ymin + m, ymax - m, n)])
+    far = min(xmax - m, base_limits(geometry.layout)[0][1] + 0.95)  # beyond the arm's reach from any base pose
+    pts = np.column_stack([rng.uniform(xmin + m, far, n), rng.uniform(ymin + m, ymax - m, n)])
     others = np.array([Q[:2, 3] for Q in world.objects.values()]).reshape(-1, 2)
     d = np.min(np.linalg.norm(pts[:, None, :] - others[None, :, :], axis=2), axis=1) if len(others) else np.full(n, 9.0)
     out = 0

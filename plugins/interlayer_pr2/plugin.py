@@ -1,7 +1,8 @@
 """Registers the PR2 pick-and-place domain and its pose generators."""
 from interlayer import hookimpl
 
-PARAMS = {"scene": "cubby", "goal": "hold", "grasps": ["side"], "target_radius": 0.035, "clutter": 0, "objects": 15}
+PARAMS = {"scene": "cubby", "goal": "hold", "grasps": ["side"], "target_radius": 0.035, "clutter": 0, "objects": 15,
+          "approach": "free"}
 
 
 def make_problem(params, seed):
