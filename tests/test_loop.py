@@ -4,6 +4,8 @@ The geometry here is a scripted test double (it says which refinements fail and 
 branch of the loop can be driven on purpose; the Gripper-2D tests exercise the real geometry.
 """
 
+import pytest
+
 from interlayer.abstraction import abstract
 from interlayer.domain import ActionSpec, DomainSpec, GroundStep, Problem, Skolem
 from interlayer.loop import InterfaceLayer, LoopSettings
@@ -233,7 +235,8 @@ def test_a_reset_reseeds_epoch_state_generators(host):
 
 
 def test_time_limit_is_honoured(host):
-    result, _ = run(lambda item, label, world, n: Failure("unreachable"), host=host, time_limit=1.0)
+    """z (untakeable) always blocks a: every learned fact leads to a dead end, epoch after epoch."""
+    result, _ = run(lambda item, label, world, n: Failure("obstruction", ("z",)), host=host, time_limit=1.0)
     assert result.status == "timeout" and "time limit" in result.reason
     assert result.times["total"] < 5
 
@@ -250,6 +253,55 @@ def test_infeasible_reference_ends_unsolvable(host):
 
     result, _ = run(lambda *a: None, gen=gen, host=host)
     assert result.status == "unsolvable" and result.reason == "a is too wide for the gripper"
+
+
+# -- no silent loops (interlayer.watchdog) ------------------------------------------------------
+def test_a_generator_that_yields_nothing_is_named_with_its_step(host):
+    def empty(problem, step, world, rng):
+        return iter(())
+
+    empty.labels = {"take": "pose generator 'scripted:empty'"}
+    result, _ = run(lambda *a: None, gen=empty, host=host)
+    assert result.status == "unsolvable"
+    assert "the pose generator 'scripted:empty' yielded no candidates for step 0 take(a, gp_a)" in result.reason
+    assert result.reason.startswith("no progress in 3 resets in a row") and result.counts["resets"] == 3
+
+
+def test_a_failure_kind_without_translation_names_the_kind_and_the_learn_keys(host):
+    result, _ = run(lambda item, label, world, n: Failure("unreachabel"), host=host)
+    assert result.status == "unsolvable"
+    assert ("the failure kind 'unreachabel' of the action 'take' has no translation (its learn keys: obstruction)"
+            in result.reason)
+
+
+def test_a_reset_cycle_repeating_the_same_state_is_stopped(host):
+    def fixed(problem, step, world, rng):  # ignores its rng: every epoch is the same
+        yield Candidate(("c0",), {}, "c0")
+
+    result, _ = run(lambda item, label, world, n: Failure("obstruction", ("z",)), gen=fixed, host=host,
+                    max_traj_count=1)
+    assert result.status == "unsolvable" and "the reset cycle repeats the same state" in result.reason
+    assert result.counts["resets"] == 3
+
+
+def test_resets_per_second_are_limited(monkeypatch):
+    """A cycle that changes every epoch yet resets faster than MAX_RESETS_PER_SECOND is stopped."""
+    from interlayer import watchdog
+
+    clock = iter(range(10**6))
+    watch = watchdog.ProgressWatch(None, clock=lambda: next(clock) * 0.001)  # 1000 resets per second
+    with pytest.raises(watchdog.NoProgress, match="the loop is spinning: 100 resets in 0.10 s"):
+        for epoch in range(watchdog.RATE_WINDOW):
+            watch.signature.append(epoch)
+            watch.reset(learned=1, plan=[])
+
+
+def test_the_trace_size_is_limited(monkeypatch, host):
+    from interlayer import watchdog
+
+    monkeypatch.setattr(watchdog, "MAX_TRACE_EVENTS", 30)
+    result, _ = run(lambda item, label, world, n: Failure("obstruction", ("z",)), host=host, time_limit=20)
+    assert result.status == "unsolvable" and "the trace reached 30 events without a solution" in result.reason
 
 
 def _refined(problem, model, plan):

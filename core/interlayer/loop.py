@@ -10,6 +10,15 @@ from .domain import GroundStep
 from .refine import EpochState, Infeasible, PoseGenerator, Refiner, stable_seed
 from .result import Result
 from .trace import Stats, Trace
+from .watchdog import NoProgress, ProgressWatch
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C during a run; ``result`` holds what was done so far (status "interrupted")."""
+
+    def __init__(self, result):
+        super().__init__("interrupted")
+        self.result = result
 
 
 @dataclass(frozen=True)
@@ -45,6 +54,8 @@ class InterfaceLayer:
         self.learned: list = []  # facts learned in this epoch (a reset clears them)
         self.task_calls = 0
         self.replans = 0
+        self.watch = ProgressWatch(model)
+        self.plan: list = []
 
     # -- pieces -----------------------------------------------------------------------------
     def _time_left(self) -> float:
@@ -72,6 +83,9 @@ class InterfaceLayer:
         def candidates(rng):
             with self.stats.timer("pose_generation"):
                 items = list(factory(problem, step, world, rng))
+            if not items:
+                label = getattr(factory, "labels", {}).get(step.action, f"pose generator of '{step.action}'")
+                self.watch.generator_empty(label, index, step)
             return items
 
         return PoseGenerator(candidates, stable_seed(self.settings.seed, self.epoch, index, step))
@@ -107,6 +121,7 @@ class InterfaceLayer:
 
     def _on_attempt(self, step, candidate, outcome, partial, cached):
         self.stats.count("refinement_attempts")
+        self.watch.attempt(step, self.plan[step], candidate, outcome)
         self.trace.emit("attempt", mode="partial" if partial else "error-free", step=step,
                         action=str(self.plan[step]), candidate=candidate.label, ok=outcome.ok, cached=cached,
                         failure=outcome.failure.to_json() if outcome.failure else None)
@@ -129,18 +144,25 @@ class InterfaceLayer:
     def solve(self) -> Result:
         t0 = time.perf_counter()
         self.deadline = t0 + self.settings.time_limit
+        if self.motion is not None:  # a motion planner never plans past the run's time limit
+            self.motion.deadline = self.deadline
         try:
             status, reason, refinement = self._run()
-        except Infeasible as exc:
+        except (Infeasible, NoProgress) as exc:
             status, reason, refinement = "unsolvable", str(exc), None
+        except KeyboardInterrupt:
+            status, reason, refinement = "interrupted", "interrupted by the user (Ctrl-C)", None
         self.stats.times["total"] = time.perf_counter() - t0
         accounted = sum(v for k, v in self.stats.times.items() if k != "total")
         self.stats.times["interface"] = max(0.0, self.stats.times["total"] - accounted)
         self.trace.emit("end", status=status, reason=reason)
-        return Result(status=status, reason=reason, plan=list(self.plan) if status == "solved" else [],
+        result = Result(status=status, reason=reason, plan=list(self.plan) if status == "solved" else [],
                       learned_facts=list(self.learned), replans=self.replans, task_planner_calls=self.task_calls,
                       times=dict(self.stats.times), counts=dict(self.stats.counts), seed=self.settings.seed,
                       refinement=refinement, trace=self.trace, problem=self.model.problem, model=self.model)
+        if status == "interrupted":
+            raise Interrupted(result)
+        return result
 
     def _run(self):
         init = self.model.init
@@ -175,7 +197,10 @@ class InterfaceLayer:
             traj_count, new_plan = 0, None
             for partial in refiner.try_refine(self.plan, step, world, prefix, partial=True):  # lines 7-8
                 f = partial.fail_step
-                facts = self.translate(partial.failure, self.plan[f]) - states[f]
+                facts = self.translate(partial.failure, self.plan[f])
+                if not facts:
+                    self.watch.untranslated(partial.failure, self.plan[f])
+                facts -= states[f]
                 if not facts:
                     continue  # nothing new to tell the task planner: try the next failure
                 traj_count += 1
@@ -206,6 +231,9 @@ class InterfaceLayer:
                 self.trace.emit("reset", epoch=self.epoch, traj_count=traj_count,
                                 reason="MaxTrajCount reached" if traj_count >= self.settings.max_traj_count
                                 else "no partial refinement led to a solvable state")
+                self.stats.count("resets")
+                self.watch.reset(traj_count, self.plan)
+            self.watch.check_trace(len(self.trace.events))
         return "timeout", f"the time limit of {self.settings.time_limit:g} s was reached before a refinement was found", None
 
 

@@ -29,7 +29,7 @@ class Candidate:
 class Failure:
     """Why an action could not be refined (the failed geometric preconditions)."""
 
-    kind: str  # "obstruction", "ik", "unreachable", ...
+    kind: str  # a key of the action's learn templates ("obstruction"), or another kind ("ik", "unreachable")
     objects: tuple = ()  # the obstructing objects, for "obstruction"
     detail: str = ""
 
@@ -54,13 +54,21 @@ class Infeasible(Exception):
 
 
 class Geometry(Protocol):
-    """The domain's refinement runtime."""
+    """The domain's refinement runtime (``Problem.geometry``). Optional methods:
+    ``trajectory_json(plan, outcomes) -> dict`` (written to ``trajectory.json``: ``{"initial":
+    snapshot, "steps": [{"action", "args", "segments"}, ...]}``, one entry per plan step) and
+    ``validate(plan, trajectory) -> list of violations`` (used by ``interlayer validate``)."""
 
-    def initial_world(self) -> Any: ...
+    def initial_world(self) -> Any:
+        """The low-level state at the start: any value; worlds are never mutated, only replaced."""
 
-    def refine_step(self, step: GroundStep, world: Any, candidate: Candidate, motion) -> StepOutcome: ...
+    def refine_step(self, step: GroundStep, world: Any, candidate: Candidate, motion) -> StepOutcome:
+        """Refine ``step`` from ``world`` through ``candidate.waypoints`` with the ``motion``
+        planner: ``StepOutcome(True, new_world, segments)`` or ``StepOutcome(False,
+        failure=Failure(kind, objects))``; ``kind`` selects the action's ``learn`` templates."""
 
-    def snapshot(self, world: Any) -> dict: ...
+    def snapshot(self, world: Any) -> dict:
+        """A JSON-able picture of ``world`` (written into failure events and drawn by visualizers)."""
 
 
 class PoseGenerator:

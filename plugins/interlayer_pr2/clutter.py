@@ -199,6 +199,16 @@ def looks_like_pybullet_json(path) -> dict | None:
 
 
 def load_pybullet_json(path, data, params, seed) -> Problem:
+    """The problem of a pybullet-planning JSON file; a malformed file is a UserError naming what is wrong."""
+    try:
+        return _load_pybullet_json(path, data, params, seed)
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError) as exc:
+        what = f"the key {exc}" if isinstance(exc, KeyError) else f"{type(exc).__name__}: {exc}"
+        raise UserError(f"{path.name} is not a pybullet-planning problem Interlayer can read ({what}); "
+                        f"check the file against the format's bodies / robots / task fields.") from None
+
+
+def _load_pybullet_json(path, data, params, seed) -> Problem:
     task = data["task"]
     unsupported = [k for k in UNSUPPORTED_GOALS if task.get(k)]
     if unsupported or not task.get("goal_holding"):

@@ -66,7 +66,7 @@ def interlayer_register_domains(registry):
     registry.add("pr2", make_problem,
                  "a PR2 picks a cylinder from a cubby whose mouth another cylinder blocks (Fig. 3 actions, both arms); "
                  "scene = \"clutter\": the paper's cluttered table (Clutter-N, objects = N)",
-                 params=PARAMS)
+                 params=PARAMS, drawing="interlayer_pr2.draw")
 
 
 @hookimpl
