@@ -50,7 +50,7 @@ def reachable(geometry, world, obj) -> bool:
     return bool(exposed(body, d[0], P0, pad=geometry.padding))
 
 
-def move_base(problem, step, world, rng, limit: int = 6, tries: int = 200):
+def move_base(problem, step, world, rng, limit: int = 6, tries: int = 400):
     geometry = problem.geometry
     info = geometry.refs.get(step.args[0])
     if info is not None and info[0] == "bpfo":
