@@ -71,12 +71,13 @@ def test_objects_in_the_drawer_move_with_it(host):
 @pytest.mark.parametrize("variant", ["O", "N"])
 def test_constructed_scenes_have_their_property(host, variant):
     from interlayer_drawer.check import check_property
+    from interlayer_drawer.world import DrawerGeometry
 
     for seed in (0, 1):
         problem = _problem(host, variant, seed)
         text = problem.geometry.describe()  # what `interlayer check` prints
         assert f"({variant}) holds" in text, text
-        report = check_property(type(problem.geometry)(problem.geometry.layout, padding=0.0))
+        report = check_property(DrawerGeometry(problem.geometry.layout, padding=0.0))
         if variant == "O":
             d, base = report.witness
             assert report.first_exposed <= d <= report.pulls_free
