@@ -58,8 +58,8 @@ def table1(runs, rows) -> list:
             paper = (info.get(key[:2]) or {}).get("paper") or {}
             p_solved, p_mean = paper.get("solved"), paper.get("mean_time")
             if key[2] is None:
-                why = (info.get(key[:2]) or {}).get("skipped") or "no runs yet"
-                lines.append([key[1], "0", f"skipped: {why}", _fmt(p_solved, 0), "", _fmt(p_mean, 0), "", "", ""])
+                why = (info.get(key[:2]) or {}).get("skipped")
+                lines.append([key[1], "0", f"skipped: {why}" if why else "no runs yet", _fmt(p_solved, 0), "", _fmt(p_mean, 0), "", "", ""])
                 continue
             rs = groups[key]
             ok = [r for r in rs if r["status"] == "solved"]
@@ -120,11 +120,18 @@ def split_table(runs) -> tuple[list, dict]:
         label = key[1] + (f" [{key[2]}]" if len({k[2] for k in groups}) > 1 else "")
         data[label] = {c: _mean([(r["times"] or {}).get(c, 0.0) for r in ok]) for c in cats}
         lines.append([label, *(_fmt(_median([(r["times"] or {}).get(c, 0.0) for r in ok]), 2) for c in cats),
-                      _fmt(_median([r["time_total"] for r in ok]), 2)])
+                      _fmt(_median([r["time_total"] for r in ok]), 2), *(_median_max([r[k] for r in ok]) for k in
+                      ("task_planner_calls", "replans")), _fmt(max((r["peak_memory_mb"] or 0) for r in ok), 0)])
     if not lines:
         return [], data
-    return [("h2", "Where the time goes (medians over solved runs, s)"),
-            ("table", ["problem", *(c.replace("_", " ") for c in cats), "total"], lines)], data
+    return [("h2", "Where the time goes (medians over the solved runs, s) and the loop's effort"),
+            ("table", ["problem", *(c.replace("_", " ") for c in cats), "total", "task-planner calls (median / max)",
+                       "replans (median / max)", "peak memory (max, MB)"], lines)], data
+
+
+def _median_max(xs) -> str:
+    xs = [x for x in xs if x is not None]
+    return f"{_fmt(_median(xs), 0)} / {max(xs)}" if xs else "-"
 
 
 def histogram_png(runs, path: Path) -> bool:

@@ -110,13 +110,16 @@ def load_suite(name: str, quick: bool = False, seeds=None, time_limit=None, comb
         sets = r.get("set", [])
         if isinstance(sets, str) or not all(isinstance(s, str) for s in sets):
             raise UserError(f"The row '{r['name']}' of {path}: set must be a list of \"key=value\" strings.")
-        rows.append(Row(r["name"], str((path.parent / r["config"]).resolve()), list(sets) + list(overrides),
+        rows.append(Row(r["name"], str((path.parent / r["config"]).resolve()), list(sets),
                         parse_seeds(row_seeds), dict(r.get("paper", {}))))
     names = [r.name for r in rows]
     if len(set(names)) != len(names):
         raise UserError(f"The suite {path} has two rows with the same name; give every row its own name.")
     combo_specs = list(combos) or list(data.get("combo", []))
-    return Suite(str(data.get("name", path.stem)), str(path), rows, parse_combos(combo_specs), limit)
+    crossed = parse_combos(combo_specs)
+    if overrides:  # part of the combination's name, so that runs with other --set values are not taken as done
+        crossed = [(" ".join([*([label] if sets else []), *overrides]), [*sets, *overrides]) for label, sets in crossed]
+    return Suite(str(data.get("name", path.stem)), str(path), rows, crossed, limit)
 
 
 def mark_skipped(suite: Suite) -> None:
