@@ -204,6 +204,8 @@ def run_suite(suite: Suite, db_path, jobs: int | None = None, executor: str = "l
               progress: bool = True, log=lambda msg: print(msg, file=sys.stderr, flush=True)) -> dict:
     """Run every (row, combination, seed) of the suite that the database does not hold yet.
     Returns {"ran": N, "statuses": {...}, "skipped_rows": {row: why}, "interrupted": bool}."""
+    if executor != "local" and not executor.startswith("dask://"):
+        raise UserError(f"Unknown executor '{executor}'; use 'local' or 'dask://HOST:PORT'.")
     con = db.connect(db_path)
     mark_skipped(suite)
     db.record_rows(con, suite.name, suite.rows)
@@ -219,10 +221,8 @@ def run_suite(suite: Suite, db_path, jobs: int | None = None, executor: str = "l
         return summary
     if executor.startswith("dask://"):
         results = _dask(specs, "tcp://" + executor[len("dask://"):] if "://" not in executor[7:] else executor[7:])
-    elif executor == "local":
-        results = _local(specs, max(1, jobs or os.cpu_count() or 1))
     else:
-        raise UserError(f"Unknown executor '{executor}'; use 'local' or 'dask://HOST:PORT'.")
+        results = _local(specs, max(1, jobs or os.cpu_count() or 1))
     bar = _Progress(len(specs), progress)
     try:
         for run in results:

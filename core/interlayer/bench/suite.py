@@ -128,13 +128,23 @@ def mark_skipped(suite: Suite) -> None:
     from ..plugins import PluginHost
 
     host = PluginHost()
+
+    def check(overrides):
+        config = api.resolve_config(row.config, overrides)
+        domain = config["problem"].get("domain")
+        if domain and not config["problem"].get("file"):
+            cfg.check(config, host["domains"].get(domain).params)
+        elif config["problem"].get("file") and not Path(config["problem"]["file"]).exists():
+            raise UserError(f"the problem file {config['problem']['file']} does not exist")
+
     for row in suite.rows:
         try:
-            config = api.resolve_config(row.config, row.overrides)
-            domain = config["problem"].get("domain")
-            if domain and not config["problem"].get("file"):
-                cfg.check(config, host["domains"].get(domain).params)
-            elif config["problem"].get("file") and not Path(config["problem"]["file"]).exists():
-                raise UserError(f"the problem file {config['problem']['file']} does not exist")
+            check(row.overrides)
         except UserError as exc:
             row.skipped = str(exc).rstrip(".").replace(f"{Path.cwd()}/", "")
+            continue
+        for label, sets in suite.combos:  # a bad --combo or --set is the user's error, not the row's
+            try:
+                check([*row.overrides, *sets])
+            except UserError as exc:
+                raise UserError(f"The combination '{label}' does not fit the row '{row.name}': {exc}") from None
