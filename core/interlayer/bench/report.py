@@ -44,11 +44,20 @@ def _ordered(rows, groups):
     return sorted(keys + missing, key=lambda k: (k[0], position.get(k[:2], 1e9)))
 
 
+def _label(key, groups) -> str:
+    """The row's name, with the combination and the time limit when the database holds several."""
+    label = key[1]
+    if len({k[2] for k in groups}) > 1:
+        label += f" [{key[2]}]"
+    if len({k[3] for k in groups if k[0] == key[0]}) > 1:
+        label += f" ({key[3]:g} s)"
+    return label
+
+
 def table1(runs, rows) -> list:
     """Blocks for one Table I per suite: ours, the paper's, the ratio of the mean times."""
     info = {(r["suite"], r["row"]): r for r in rows}
     groups = _groups(runs)
-    combos = {k[2] for k in groups}
     blocks = []
     header = ["problem", "runs", "% solved", "paper % solved", "mean / median time of solved (s)",
               "paper mean (s)", "time ratio (ours / paper)", "plan length / cost (median)", "not solved"]
@@ -69,8 +78,7 @@ def table1(runs, rows) -> list:
             for r in rs:
                 if r["status"] != "solved":
                     fails[r["status"]] += 1
-            name = key[1] + (f" [{key[2]}]" if len(combos) > 1 else "")
-            lines.append([name, str(len(rs)), _fmt(100 * len(ok) / len(rs), 0), _fmt(p_solved, 0),
+            lines.append([_label(key, groups), str(len(rs)), _fmt(100 * len(ok) / len(rs), 0), _fmt(p_solved, 0),
                           f"{_fmt(mean)} / {_fmt(_median(times))}", _fmt(p_mean, 0),
                           _fmt(mean / p_mean, 3) if mean is not None and p_mean else "-",
                           f"{_fmt(_median([r['plan_length'] for r in ok]), 0)} / "
@@ -78,10 +86,11 @@ def table1(runs, rows) -> list:
                           ", ".join(f"{n} {s}" for s, n in sorted(fails.items())) or "-"])
         limits = sorted({k[3] for k in groups if k[0] == suite})
         blocks.append(("h2", f"Suite `{suite}`: Table I"))
+        cited = any(r["paper"] for r in rows if r["suite"] == suite)
         blocks.append(("p", f"Time limit per run: {', '.join(f'{x:g}' for x in limits)} s. Times are the planner's own "
-                            "`times.total` of the runs solved within the limit and confirmed by `interlayer validate`. "
-                            "Paper: Srivastava et al., ICRA 2014, Table I (Intel i7-4770K, 600 s limit, 100 problems "
-                            "per Clutter row, 10 per other row)."))
+                            "`times.total` of the runs solved within the limit and confirmed by `interlayer validate`."
+                            + (" Paper: Srivastava et al., ICRA 2014, Table I (Intel i7-4770K, 600 s limit, 100 problems "
+                               "per Clutter row, 10 per other row)." if cited else "")))
         blocks.append(("table", header, lines))
     return blocks
 
@@ -117,7 +126,7 @@ def split_table(runs) -> tuple[list, dict]:
         ok = [r for r in rs if r["status"] == "solved"]
         if not ok:
             continue
-        label = key[1] + (f" [{key[2]}]" if len({k[2] for k in groups}) > 1 else "")
+        label = _label(key, groups)
         data[label] = {c: _mean([(r["times"] or {}).get(c, 0.0) for r in ok]) for c in cats}
         lines.append([label, *(_fmt(_median([(r["times"] or {}).get(c, 0.0) for r in ok]), 2) for c in cats),
                       _fmt(_median([r["time_total"] for r in ok]), 2), *(_median_max([r[k] for r in ok]) for k in
@@ -140,6 +149,7 @@ def histogram_png(runs, path: Path) -> bool:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     groups = _groups(runs)
     solved = {k: [r["time_total"] for r in v if r["status"] == "solved"] for k, v in groups.items()}
@@ -154,8 +164,9 @@ def histogram_png(runs, path: Path) -> bool:
     for ax, (key, times) in zip(axes.flat, solved.items()):
         ax.hist(times, bins=bins, color="#4477aa", edgecolor="white")
         ax.set_yscale("log")
-        ax.set_ylim(bottom=0.7)
-        ax.set_title(f"{key[1]} ({len(times)}/{len(groups[key])} solved)", fontsize=9)
+        ax.set_ylim(0.7, max(10, 1.5 * len(times)))
+        ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())  # decades only
+        ax.set_title(f"{_label(key, groups)} ({len(times)}/{len(groups[key])} solved)", fontsize=9)
         ax.tick_params(labelsize=7)
     for ax in list(axes.flat)[len(solved):]:
         ax.axis("off")
