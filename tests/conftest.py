@@ -1,4 +1,5 @@
 import sys
+from collections import Counter
 from pathlib import Path
 
 import pytest
@@ -18,6 +19,15 @@ def host():
 @pytest.fixture(scope="session")
 def gripper_example():
     return str(ROOT / "examples" / "gripper2d.toml")
+
+
+# What the robustness tests (pytest -m robustness) did, printed at the end of the run.
+ROBUSTNESS: Counter = Counter()
+
+
+def pytest_terminal_summary(terminalreporter):
+    if ROBUSTNESS:
+        terminalreporter.write_line("robustness: " + ", ".join(f"{k} {v}" for k, v in sorted(ROBUSTNESS.items())))
 
 
 def pytest_report_header(config):
@@ -43,3 +53,39 @@ def solved_run(tmp_path_factory, example, name):
     assert result.solved, result.reason
     api.write_outputs(result, out)
     return out
+
+
+def write_plugin(folder, name: str, source: str, dist: str | None = None):
+    """A third-party plugin as an installed distribution would look on sys.path: the module
+    ``name`` and a ``*.dist-info`` with its ``interlayer.plugins`` entry point (no pip needed).
+    Returns the folder to put on sys.path (or PYTHONPATH for a subprocess)."""
+    import textwrap
+
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f"{name}.py").write_text(textwrap.dedent(source))
+    dist = dist or name.replace("_", "-")
+    info = folder / f"{dist.replace('-', '_')}-0.1.dist-info"
+    info.mkdir(exist_ok=True)
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(f"[interlayer.plugins]\n{name} = {name}\n")
+    return folder
+
+
+@pytest.fixture
+def plugin_dir(tmp_path, monkeypatch):
+    """``plugin_dir(name, source)``: install a throwaway plugin for this test only."""
+    import importlib
+
+    added = []
+
+    def make(name, source):
+        folder = write_plugin(tmp_path / "site", name, source)
+        if str(folder) not in sys.path:
+            monkeypatch.syspath_prepend(str(folder))
+        importlib.invalidate_caches()
+        added.append(name)
+        return folder
+
+    yield make
+    for name in added:
+        sys.modules.pop(name, None)

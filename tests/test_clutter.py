@@ -96,3 +96,55 @@ def test_papers_scene_as_shipped_is_unsolvable_by_gripper_width(tmp_path):
     assert time.perf_counter() - t0 < 30
     api.write_outputs(result, tmp_path)
     assert "problem" in (tmp_path / "config.toml").read_text()  # rebuildable: problem.file is recorded
+
+
+def test_a_reset_reseeds_the_clutter_pick_generator(host):
+    """Alg. 1, line 16: after a reset the pick generator samples other grasps for an object that has
+    not moved (its candidates used to be cached on the geometry across epochs)."""
+    from interlayer.abstraction import abstract
+    from interlayer.domain import GroundStep
+    from interlayer.loop import InterfaceLayer, LoopSettings
+
+    config = api.resolve_config(str(CONFIG), ["problem.objects=15", "planner.seed=0"])
+    problem = api.build_problem(host, config)
+    model = abstract(problem)
+    layer = InterfaceLayer(model, None, None, api.generators_for(host, model, config), [], LoopSettings())
+    t = problem.geometry.layout.target
+    step = GroundStep("pick", (t, "left", "right", f"bpfg_{t}_left", f"gpfg_{t}_left", f"gpfg_{t}_right"))
+    world = problem.geometry.initial_world()
+
+    def bases():
+        gen = layer.make_generator(0, step, world)
+        cands = [gen.reset_and_get_first()]
+        while (c := gen.get_next()) is not None:
+            cands.append(c)
+        return [tuple(c.waypoints[0]) for c in cands]
+
+    first = bases()
+    assert first and bases() == first  # stable within an epoch
+    layer.new_epoch()
+    assert set(bases()).isdisjoint(first)
+
+
+def test_front_approach_keeps_the_base_on_the_near_side_and_the_target_reachable(host):
+    """problem.approach = "front": base poses stay on the table's near long side, and the target is
+    an object graspable from there when nothing is in the way (so the scene is solvable)."""
+    from interlayer.domain import GroundStep
+    from interlayer_pr2.clutter import ClutterSampler
+
+    for seed in (1, 4):
+        problem = _problem(["problem.objects=40", f"planner.seed={seed}", "problem.approach=front"])
+        layout = problem.geometry.layout
+        edge = layout.regions["table"][0]
+        assert layout.extra["base_limits"][0][1] <= edge - 0.3
+        t = layout.target
+        assert problem.goal == f"(or (Holding {t} left) (Holding {t} right))"
+        sampler = ClutterSampler([seed])
+        world = problem.geometry.initial_world()
+        bases = [c.waypoints[0] for arm in ("left", "right")
+                 for c in sampler(problem, GroundStep("pick", (t, arm, "x", "bp", "gp", "gp2")), world, None)]
+        assert bases and all(b[0] <= edge - 0.3 for b in bases)
+    free = _problem(["problem.objects=40", "planner.seed=1"]).geometry.layout
+    assert free.extra["base_limits"][0][1] > free.regions["table"][1]  # free: the far side is allowed
+    with pytest.raises(UserError, match="problem.approach"):
+        _problem(["problem.approach=back"])

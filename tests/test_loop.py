@@ -4,8 +4,10 @@ The geometry here is a scripted test double (it says which refinements fail and 
 branch of the loop can be driven on purpose; the Gripper-2D tests exercise the real geometry.
 """
 
+import pytest
+
 from interlayer.abstraction import abstract
-from interlayer.domain import ActionSpec, DomainSpec, Problem, Skolem
+from interlayer.domain import ActionSpec, DomainSpec, GroundStep, Problem, Skolem
 from interlayer.loop import InterfaceLayer, LoopSettings
 from interlayer.refine import Candidate, Failure, Infeasible, StepOutcome
 
@@ -136,12 +138,105 @@ def test_max_traj_count_resets_learned_facts_and_reseeds(host):
         if e["type"] == "attempt":
             labels_by_epoch.setdefault(epoch, set()).add(e["candidate"])
     assert labels_by_epoch[0].isdisjoint(labels_by_epoch[1])
-    assert ("Obstructs", "z", "gp_a", "a") in result.learned_facts  # reported though the reset cleared it
     assert len(attempts) >= 5
 
 
+def test_reset_clears_learned_facts(host):
+    """Alg. 1, line 15: after MaxTrajCount the learned facts leave the state (the same failure is
+    learned again in the next epoch) and the result no longer reports them."""
+    def script(item, label, world, n):  # z (untakeable) blocks a for the first 4 refinements: dead ends
+        return Failure("obstruction", ("z",)) if n <= 4 else None
+
+    result, _ = run(script, host=host, max_traj_count=1)
+    assert result.status == "solved" and events(result, "reset")
+    fact = "(Obstructs z gp_a a)"
+    learned_in_epoch = {}
+    epoch = 0
+    for e in result.trace.events:
+        if e["type"] == "reset":
+            epoch = e["epoch"]
+        if e["type"] == "failure":
+            learned_in_epoch.setdefault(epoch, []).extend(e["facts"])
+    assert fact in learned_in_epoch[0] and fact in learned_in_epoch[1]
+    assert result.learned_facts == []  # the solving epoch learned nothing
+
+
+def test_plan_longer_than_the_attempt_budget_refines(host):
+    """Successful attempts do not count against max_refine_attempts: a 3-step plan refines with a
+    budget of 1 (it used to reset forever)."""
+    goal = "(and (Done a) (Done b) (Done y))"
+    result, _ = run(lambda *a: None, goal=goal, items=("a", "b", "y"), takeable=("a", "b", "y"), host=host,
+                    max_refine_attempts=1, time_limit=10.0)
+    assert result.status == "solved", result.reason
+    assert len(result.plan) == 3 and not events(result, "reset")
+
+
+def test_attempt_budget_grows_across_epochs(host):
+    """Every step's first candidate fails and teaches nothing: with a budget of one failure per step
+    the first epoch cannot refine; the next epoch's larger budget can."""
+    def script(item, label, world, n):
+        return Failure("unreachable") if label.startswith("c0") else None
+
+    goal = "(and (Done a) (Done b))"
+    result, _ = run(script, goal=goal, host=host, max_refine_attempts=1, time_limit=10.0)
+    assert result.status == "solved", result.reason
+    assert len(events(result, "reset")) == 1
+
+
+class LabelledGeometry(ScriptedGeometry):
+    """World = the (item, candidate) pairs taken so far, so the script can see earlier choices."""
+
+    def refine_step(self, step, world, candidate, motion):
+        self.calls += 1
+        failure = self.script(step.args[0], candidate.label, world, self.calls)
+        if failure:
+            return StepOutcome(False, failure=failure)
+        return StepOutcome(True, world | {(step.args[0], candidate.label[:2])}, [{"took": step.args[0]}])
+
+
+def test_backtracks_to_an_earlier_step_when_a_generator_is_exhausted(host):
+    """Alg. 2, lines 7-10: step 1 refines only if step 0 took its second candidate; every candidate
+    of step 1 fails after step 0's first, so TryRefine must go back and advance step 0."""
+    def script(item, label, world, n):
+        if world and next(iter(world))[1] == "c0":
+            return Failure("unreachable")
+        return None
+
+    problem = Problem(SPEC, {i: "item" for i in ("a", "b")}, frozenset(("Takeable", t) for t in "ab"),
+                      "(and (Done a) (Done b))", LabelledGeometry(script), {})
+    task = host["task_planners"].get("fast-downward").factory({})
+    translators = [("templates", host["failure_translators"].get("templates").factory)]
+    layer = InterfaceLayer(abstract(problem), task, None, {"take": generator()}, translators,
+                           LoopSettings(time_limit=10.0, max_traj_count=1))
+    result = layer.solve()
+    assert result.status == "solved", result.reason
+    assert not events(result, "reset") and result.task_planner_calls == 1
+    tried = [(e["step"], e["candidate"][:2], e["ok"]) for e in events(result, "attempt") if e["mode"] == "error-free"]
+    assert tried == [(0, "c0", True), (1, "c0", False), (1, "c1", False), (0, "c1", True), (1, "c0", True)]
+
+
+def test_a_reset_reseeds_epoch_state_generators(host):
+    """A generator that keeps state (an EpochState) gets a fresh, reseeded instance after a reset."""
+    from interlayer.refine import EpochState
+
+    class Sampler(EpochState):
+        def __call__(self, problem, step, world, rng):
+            for k in range(2):
+                yield Candidate((k,), {}, f"c{k}-{self.rng_for(step.args[0]).integers(10**9)}")
+
+    problem = Problem(SPEC, {"a": "item"}, frozenset({("Takeable", "a")}), "(Done a)",
+                      ScriptedGeometry(lambda *a: None), {})
+    layer = InterfaceLayer(abstract(problem), None, None, {"take": Sampler}, [], LoopSettings())
+    step = GroundStep("take", ("a", "gp_a"))
+    first = layer.make_generator(0, step, frozenset()).reset_and_get_first().label
+    assert layer.make_generator(0, step, frozenset()).reset_and_get_first().label == first  # same epoch
+    layer.new_epoch()
+    assert layer.make_generator(0, step, frozenset()).reset_and_get_first().label != first
+
+
 def test_time_limit_is_honoured(host):
-    result, _ = run(lambda item, label, world, n: Failure("unreachable"), host=host, time_limit=1.0)
+    """z (untakeable) always blocks a: every learned fact leads to a dead end, epoch after epoch."""
+    result, _ = run(lambda item, label, world, n: Failure("obstruction", ("z",)), host=host, time_limit=1.0)
     assert result.status == "timeout" and "time limit" in result.reason
     assert result.times["total"] < 5
 
@@ -158,3 +253,128 @@ def test_infeasible_reference_ends_unsolvable(host):
 
     result, _ = run(lambda *a: None, gen=gen, host=host)
     assert result.status == "unsolvable" and result.reason == "a is too wide for the gripper"
+
+
+# -- no silent loops (interlayer.watchdog) ------------------------------------------------------
+def test_a_generator_that_yields_nothing_is_named_with_its_step(host):
+    def empty(problem, step, world, rng):
+        return iter(())
+
+    empty.labels = {"take": "pose generator 'scripted:empty'"}
+    result, _ = run(lambda *a: None, gen=empty, host=host)
+    assert result.status == "unsolvable"
+    assert "the pose generator 'scripted:empty' yielded no candidates for step 0 take(a, gp_a)" in result.reason
+    assert result.reason.startswith("no progress in 3 resets in a row") and result.counts["resets"] == 3
+
+
+def test_a_failure_kind_without_translation_names_the_kind_and_the_learn_keys(host):
+    result, _ = run(lambda item, label, world, n: Failure("unreachabel"), host=host)
+    assert result.status == "unsolvable"
+    assert ("the failure kind 'unreachabel' of the action 'take' has no translation (its learn keys: obstruction)"
+            in result.reason)
+
+
+def test_a_reset_cycle_repeating_the_same_state_is_stopped(host):
+    def fixed(problem, step, world, rng):  # ignores its rng: every epoch is the same
+        yield Candidate(("c0",), {}, "c0")
+
+    result, _ = run(lambda item, label, world, n: Failure("obstruction", ("z",)), gen=fixed, host=host,
+                    max_traj_count=1)
+    assert result.status == "unsolvable" and "the reset cycle repeats the same state" in result.reason
+    assert result.counts["resets"] == 3
+
+
+def test_resets_per_second_are_limited(monkeypatch):
+    """A cycle that changes every epoch yet resets faster than MAX_RESETS_PER_SECOND is stopped."""
+    from interlayer import watchdog
+
+    clock = iter(range(10**6))
+    watch = watchdog.ProgressWatch(None, clock=lambda: next(clock) * 0.001)  # 1000 resets per second
+    with pytest.raises(watchdog.NoProgress, match="the loop is spinning: 100 resets in 0.10 s"):
+        for epoch in range(watchdog.RATE_WINDOW):
+            watch.signature.append(epoch)
+            watch.reset(learned=1, plan=[])
+
+
+def test_the_trace_size_is_limited(monkeypatch, host):
+    from interlayer import watchdog
+
+    monkeypatch.setattr(watchdog, "MAX_TRACE_EVENTS", 30)
+    result, _ = run(lambda item, label, world, n: Failure("obstruction", ("z",)), host=host, time_limit=20)
+    assert result.status == "unsolvable" and "the trace reached 30 events without a solution" in result.reason
+
+
+def _refined(problem, model, plan):
+    """The plan refined by TryRefine (with the candidates each step used), as the loop would."""
+    from interlayer.loop import _drain
+    from interlayer.refine import Refiner
+
+    layer = InterfaceLayer(model, None, None, {"take": generator()}, [], LoopSettings())
+    done = _drain(Refiner(problem.geometry, None, layer.make_generator, 2, lambda: False)
+                  .try_refine(plan, 0, frozenset(), {}, partial=False))
+    return [done.outcomes[i] for i in range(len(plan))]
+
+
+def _shortcut(problem, model, plan, outcomes, state):
+    from interlayer.shortcut import shortcut
+    from interlayer.trace import Stats
+
+    dropped = []
+    short, out = shortcut(plan, outcomes, model, state, problem.geometry, None, frozenset(), lambda: False,
+                          lambda d, p: dropped.append(d), Stats())
+    return short, out, dropped
+
+
+def test_shortcut_drops_steps_the_plan_does_not_need():
+    """A step that the goal does not need and whose removal still refines is dropped; a step that a
+    learned obstruction makes necessary is kept; later steps keep the pose values they had."""
+    problem = Problem(SPEC, {i: "item" for i in "aby"}, frozenset(("Takeable", t) for t in "aby"), "(Done a)",
+                      ScriptedGeometry(lambda *a: None), {})
+    model = abstract(problem)
+    plan = [GroundStep("take", ("b", "gp_b")), GroundStep("take", ("y", "gp_y")), GroundStep("take", ("a", "gp_a"))]
+    outcomes = _refined(problem, model, plan)
+    short, out, dropped = _shortcut(problem, model, plan, outcomes, model.init)
+    assert short == plan[2:] and len(out) == 1 and out[0].world == frozenset({"a"}) and dropped
+    assert out[0].candidate == outcomes[2].candidate
+    learned = model.init | {("Obstructs", "b", "gp_a", "a")}  # b stood in a's way: taking b stays
+    short, _, _ = _shortcut(problem, model, plan, outcomes, learned)
+    assert short == [plan[0], plan[2]]
+
+
+def test_shortcut_keeps_a_step_whose_removal_does_not_refine():
+    def script(item, label, world, n):  # a can be taken only once b is gone: geometry, not learned
+        return Failure("unreachable") if item == "a" and "b" not in world else None
+
+    problem = Problem(SPEC, {i: "item" for i in "ab"}, frozenset(("Takeable", t) for t in "ab"), "(Done a)",
+                      ScriptedGeometry(script), {})
+    model = abstract(problem)
+    plan = [GroundStep("take", ("b", "gp_b")), GroundStep("take", ("a", "gp_a"))]
+    outcomes = _refined(problem, model, plan)
+    short, out, dropped = _shortcut(problem, model, plan, outcomes, model.init)
+    assert short == plan and out == outcomes and not dropped
+
+
+def test_shortcut_is_optional(host):
+    result, _ = run(lambda *a: None, host=host)
+    assert result.counts["plan_length_before_shortcut"] == result.counts["plan_length"] == 1
+    result, _ = run(lambda *a: None, host=host, shortcut=False)
+    assert "plan_length" not in result.counts
+
+
+def test_shortcut_compares_worlds_structurally():
+    """Once a redone step leaves the world as it was, shortcutting keeps the rest of the refinement."""
+    from dataclasses import dataclass
+
+    import numpy as np
+    from interlayer.shortcut import same
+
+    @dataclass(frozen=True)
+    class W:
+        base: tuple
+        objects: dict
+
+    a = W((1.0, 2.0, 0.5), {"o": np.eye(4), "p": ("grasp", np.ones(3))})
+    assert same(a, W((1.0, 2.0, 0.5), {"o": np.eye(4), "p": ("grasp", np.ones(3))}))
+    assert not same(a, W((1.0, 2.0, 0.6), {"o": np.eye(4), "p": ("grasp", np.ones(3))}))
+    assert not same(a, W((1.0, 2.0, 0.5), {"o": np.eye(4)}))
+    assert not same(a, W((1.0, 2.0, 0.5), {"o": 2 * np.eye(4), "p": ("grasp", np.ones(3))}))

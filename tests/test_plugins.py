@@ -44,3 +44,31 @@ def test_every_hook_is_documented():
         if name.startswith("interlayer_"):
             assert fn.__doc__ and ":param" in fn.__doc__, name
             assert name in doc, f"{name} is not described in docs/plugins.md"
+
+
+def test_overrides_as_in_the_docstring_a_dict_or_a_list():
+    import interlayer
+
+    assert '{"planner.task": "pyperplan"}' in interlayer.__doc__
+    by_dict = api.resolve_config(ROOT / "examples" / "gripper2d.toml", {"planner.task": "pyperplan", "problem.obstructions": 2})
+    by_list = api.resolve_config(ROOT / "examples" / "gripper2d.toml", ["planner.task=pyperplan", "problem.obstructions=2"])
+    assert by_dict == by_list and by_dict["planner"]["task"] == "pyperplan" and by_dict["problem"]["obstructions"] == 2
+
+
+def test_the_plugin_api_documents_everything_it_exports():
+    from interlayer import plugin_api
+
+    doc = (ROOT / "docs" / "plugins.md").read_text()
+    for name in plugin_api.__all__:
+        obj = getattr(plugin_api, name)
+        assert (obj.__doc__ or "").strip(), f"{name} has no docstring"
+        assert f"`{name}" in doc, f"{name} is not in docs/plugins.md's reference"
+    for key in api.cfg.PLANNER_DEFAULTS:
+        assert f"`planner.{key}`" in doc, f"planner.{key} is missing from the config schema"
+    for section in api.cfg.SECTIONS:
+        assert f"`{section}." in doc, f"[{section}] is missing from the config schema"
+
+
+def test_builtin_domains_declare_their_drawing(host):
+    assert host["domains"].get("gripper2d").drawing == "interlayer_gripper2d.draw"
+    assert host["domains"].get("pr2").drawing == "interlayer_pr2.draw"

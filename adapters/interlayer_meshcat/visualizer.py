@@ -8,8 +8,9 @@ Domains draw themselves; this module knows no domain. It looks up, in order:
        geometry.draw_scene(scene, world_snapshot_or_None) -> {object: scene name} | None
        geometry.animation_frames(scene, trajectory_json) -> [{scene name: pose, "@step": i}, ...]
 
-2. else functions of the module ``interlayer_<domain>.draw`` (domain =
-   ``problem.source["domain"]``) with the geometry as first argument::
+2. else functions of the module the domain declares as its drawing
+   (``registry.add(name, factory, drawing="my_plugin.draw")`` or ``Problem(drawing=...)``),
+   with the geometry as first argument::
 
        draw_scene(geometry, scene, world) / animation_frames(geometry, scene, trajectory)
 
@@ -78,19 +79,14 @@ def drawer(problem):
     geometry = problem.geometry
     draw = getattr(geometry, "draw_scene", None)
     frames = getattr(geometry, "animation_frames", None)
-    if draw is None or frames is None:
-        domain = (getattr(problem, "source", None) or {}).get("domain")
-        mod = None
-        if domain:
-            try:
-                mod = importlib.import_module(f"interlayer_{domain}.draw")
-            except ImportError:
-                mod = None
-        if mod is not None:
-            if draw is None and hasattr(mod, "draw_scene"):
-                draw = lambda scene, world, _f=mod.draw_scene: _f(geometry, scene, world)  # noqa: E731
-            if frames is None and hasattr(mod, "animation_frames"):
-                frames = lambda scene, traj, _f=mod.animation_frames: _f(geometry, scene, traj)  # noqa: E731
+    mod = getattr(problem, "drawing", None)
+    if isinstance(mod, str):  # declared by the domain as a dotted module name: imported when drawn
+        mod = importlib.import_module(mod)
+    if mod is not None:
+        if draw is None and hasattr(mod, "draw_scene"):
+            draw = lambda scene, world, _f=mod.draw_scene: _f(geometry, scene, world)  # noqa: E731
+        if frames is None and hasattr(mod, "animation_frames"):
+            frames = lambda scene, traj, _f=mod.animation_frames: _f(geometry, scene, traj)  # noqa: E731
     return draw, frames
 
 

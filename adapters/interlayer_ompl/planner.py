@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import zlib
 
 import numpy as np
 
@@ -25,6 +26,20 @@ class OMPLPlanner(MotionPlanner):
         super().__init__(name=f"ompl:{planner}", time_limit=time_limit, options=dict(options or {}))
         self.planner = planner
         self.simplify = simplify
+        self.queries = 0
+
+    def _seed_rng(self):
+        """OMPL's planners draw from RNGs seeded by a process-wide generator: reset it for every
+        query, from the run's seed and the query's number, so runs repeat exactly in any process."""
+        from ompl import util as ou
+
+        self.queries += 1
+        ou.setLogLevel(ou.LogLevel.LOG_NONE)  # OMPL warns that reseeding after first use is not deterministic:
+        ou.RNG.setSeed(zlib.crc32(f"{self.seed}:{self.queries}".encode()) or 1)  # it is, for RNGs made after it
+        ou.setLogLevel(ou.LogLevel.LOG_WARN)
+
+    def prepare(self):
+        _ompl()
 
     def _space(self, space):
         ob, _ = _ompl()
@@ -70,6 +85,7 @@ class OMPLPlanner(MotionPlanner):
                     st[i] = float(q[i])
                 return st
 
+        self._seed_rng()
         setup = og.SimpleSetup(ompl_space)
         setup.setStateValidityChecker(lambda s: bool(is_valid(to_vec(s))))  # must be a Python bool
         setup.setStartAndGoalStates(to_state(start), to_state(goal))
@@ -84,7 +100,7 @@ class OMPLPlanner(MotionPlanner):
         setup.solve(float(time_limit))
         if not setup.haveExactSolutionPath():  # an approximate solution is not a path
             return None
-        if self.simplify:
-            setup.simplifySolution(min(0.1, float(time_limit)))
         path = setup.getSolutionPath()
+        if self.simplify:  # bounded by iterations, not by time: the same path under any load
+            setup.getPathSimplifier().simplifyMax(path)
         return [to_vec(path.getState(i)) for i in range(path.getStateCount())]

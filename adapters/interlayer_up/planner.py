@@ -50,6 +50,10 @@ class UPTaskPlanner(TaskPlanner):
             self._builders = {key: UPProblemBuilder(model)}
         return self._builders[key]
 
+    def prepare(self, model):
+        _quiet_environment()
+        self._builder(model).problem_for(model.init)
+
     def _plan(self, model, state, timeout):
         _quiet_environment()
         builder = self._builder(model)
@@ -178,6 +182,9 @@ def _solve(engine_name, params, problem, timeout):
     if res.status == S.UNSOLVABLE_INCOMPLETELY:
         return "incomplete", None, "the task planner's (incomplete) search found no plan"
     logs = " ".join(str(l.message)[-300:] for l in (res.log_messages or [])[-1:])
+    if res.status in (S.INTERNAL_ERROR, S.UNSUPPORTED_PROBLEM):  # the engine failed: no word on the state
+        last = [line.strip() for line in logs.splitlines() if line.strip()][-2:]
+        return "error", None, f"the engine '{engine_name}' failed ({res.status.name}): {' '.join(last) or 'no message'}"
     return "unsolvable", None, f"the task planner ended with {res.status.name} {logs}".strip()
 
 
@@ -202,12 +209,17 @@ def _solve_in_child(engine_name, params, problem, timeout):
     parent, child = ctx.Pipe(duplex=False)
     proc = ctx.Process(target=_child, args=(child, engine_name, params, problem, timeout), daemon=True)
     proc.start()
+    child.close()  # the parent's copy: a child that dies must close the pipe's last write end
     ready = parent.poll(timeout)
     if not ready:
         proc.kill()
         proc.join()
         return "timeout", None, f"the task planner '{engine_name}' timed out after {timeout:.0f} s"
-    status, names, reason = parent.recv()
+    try:
+        status, names, reason = parent.recv()
+    except EOFError:  # the child died without answering (a crash in the engine)
+        proc.join()
+        return "error", None, f"the task planner process '{engine_name}' died (exit code {proc.exitcode})"
     proc.join()
     if status != "solved":
         return status, None, reason

@@ -5,6 +5,8 @@ Python API::
     import interlayer
     result = interlayer.solve("examples/gripper2d.toml", overrides={"planner.task": "pyperplan"})
     print(result.status, [str(s) for s in result.plan])
+
+Plugin authors: ``interlayer.plugin_api`` holds everything a plugin needs (docs/plugins.md).
 """
 import pluggy
 
@@ -14,7 +16,8 @@ __version__ = "0.1.0"
 
 
 def solve(config, overrides=None, **kwargs):
-    """Solve a problem given a config path, a problem file, a dict, or an output folder."""
+    """Solve a problem given a config path, a problem file, a dict, or an output folder;
+    ``overrides``: ``["planner.task=pyperplan"]`` or ``{"planner.task": "pyperplan"}``."""
     from .api import solve as _solve
 
     return _solve(config, overrides=overrides, **kwargs)

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 from . import logic
 from .domain import ActionSpec, GroundStep, Problem
-from .errors import DomainError
+from .errors import DomainError, closest
 
 
 @dataclass(frozen=True)
@@ -97,15 +97,24 @@ def _check_types(spec, typ, where):
         raise DomainError(f"Unknown type '{typ}' in {where}; declare it in the domain's types.")
 
 
-def _check_formula(spec, f, where):
+def _check_formula(spec, f, where, bound=None):
+    """Predicates must be declared with the right arity; with ``bound`` (the variables in scope),
+    every variable must be bound by it or by an enclosing quantifier."""
     for pred, _ in logic.atoms_with_polarity(f):
         if pred.name not in spec.predicates:
-            raise DomainError(f"Unknown predicate '{pred.name}' in {where}; declare it in the domain.")
+            raise DomainError(f"Unknown predicate '{pred.name}' in {where}{closest(pred.name, spec.predicates)}; "
+                              f"declare it in the domain's predicates.")
         if len(pred.args) != len(spec.predicates[pred.name]):
             raise DomainError(
                 f"Predicate '{pred.name}' takes {len(spec.predicates[pred.name])} arguments but "
                 f"{len(pred.args)} were given in {where}."
             )
+    if bound is not None:
+        free = sorted(logic.free_variables(f) - set(bound))
+        if free:
+            scope = ", ".join(sorted(bound)) or "none"
+            raise DomainError(f"The variable '{free[0]}' in {where} is not bound (variables in scope: {scope}); "
+                              f"add it to the parameters or quantify it with forall/exists.")
 
 
 def abstract(problem: Problem) -> TaskModel:
@@ -140,11 +149,12 @@ def abstract(problem: Problem) -> TaskModel:
         for _, t in act.parameters:
             _check_types(spec, t, where)
         pre, eff = logic.parse(act.precondition), logic.parse(act.effect)
-        _check_formula(spec, pre, where)
-        _check_formula(spec, eff, where)
+        params = [v for v, _ in act.parameters]
+        _check_formula(spec, pre, f"the precondition of {where}", params)
+        _check_formula(spec, eff, f"the effect of {where}", params)
         for kind, templates in act.learn.items():
             for tpl in templates:
-                _check_formula(spec, logic.parse(tpl), f"{where}, learn[{kind!r}]")
+                _check_formula(spec, logic.parse(tpl), f"{where}, learn[{kind!r}]", [*params, "?blocker"])
         full_actions[act.name] = (act.parameters, pre, eff)
         for p, pol in logic.atoms_with_polarity(pre):
             occurrences.setdefault(p.name, set()).add(pol)
@@ -152,7 +162,11 @@ def abstract(problem: Problem) -> TaskModel:
             added.setdefault(p.name, set()).add(pol)
         task_actions[act.name], roles[act.name] = _task_view(spec, act, pre, eff, skolem_preds)
     goal = logic.parse(problem.goal)
-    _check_formula(spec, goal, "the goal")
+    _check_formula(spec, goal, "the goal", [])
+    for pred, _ in logic.atoms_with_polarity(goal):
+        for arg in pred.args:
+            if not arg.startswith("?") and arg not in objects:
+                raise DomainError(f"The goal names '{arg}', which is not an object of the problem{closest(arg, objects)}.")
     for p, pol in logic.atoms_with_polarity(goal):
         occurrences.setdefault(p.name, set()).add(pol)
 

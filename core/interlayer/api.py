@@ -3,13 +3,16 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 from . import config as cfg
 from .abstraction import TaskModel, abstract
 from .errors import UserError
-from .loop import InterfaceLayer, LoopSettings
+from .faults import ComponentFailed, Guarded, PluginFault, blame, blamed
+from .loop import InterfaceLayer, Interrupted, LoopSettings
 from .plugins import PluginHost
+from .refine import EpochState
 from .result import Result
 from .trace import Stats, Trace
 
@@ -34,13 +37,22 @@ def resolve_config(source, overrides=None) -> dict:
         else:
             raw = {"problem": {"file": str(path.resolve())}}
     config = cfg.merge(cfg.default_config(), raw)
+    if isinstance(overrides, dict):  # {"planner.task": "pyperplan"}: values as they are
+        overrides = [(k, v) for k, v in overrides.items()]
     for assignment in overrides or ():
-        cfg.apply_override(config, assignment)
+        if isinstance(assignment, tuple):
+            cfg.set_value(config, *assignment)
+        else:
+            cfg.apply_override(config, assignment)
     cfg.check(config, None)
     return config
 
 
+GEOMETRY_METHODS = ("initial_world", "refine_step", "snapshot", "trajectory_json", "validate")
+
+
 def build_problem(host: PluginHost, config: dict):
+    """The Problem the config names, its geometry guarded so that its faults name its plugin."""
     params = {k: v for k, v in config["problem"].items() if k not in ("domain", "file")}
     seed = config["planner"]["seed"]
     if config["problem"].get("file"):
@@ -49,60 +61,161 @@ def build_problem(host: PluginHost, config: dict):
             raise UserError(f"The problem file {path} does not exist.")
         problem = host.load_problem(path, params, seed)
         if problem is None:
-            raise UserError(f"No installed plugin can read the problem file {path}; see 'interlayer plugins' for loaders.")
-        return problem
-    name = config["problem"].get("domain")
-    if not name:
-        raise UserError("The config names no problem: set [problem] domain = \"...\" or file = \"...\".")
-    comp = host["domains"].get(name)
-    cfg.check(config, comp.params)
-    return comp.factory({**comp.params, **params}, seed)
+            broken = "".join(f"; the plugin '{p}' failed to load ({why})" for p, why in host.broken.items())
+            raise UserError(f"No installed plugin can read the problem file {path}; see 'interlayer plugins' for loaders{broken}.")
+        comp = host["domains"].components.get((problem.source or {}).get("domain", problem.domain.name))
+    else:
+        name = config["problem"].get("domain")
+        if not name:
+            raise UserError("The config names no problem: set [problem] domain = \"...\" or file = \"...\".")
+        comp = host["domains"].get(name)
+        cfg.check(config, comp.params)
+        with blame(comp.plugin, comp.label):
+            problem = comp.factory({**comp.params, **params}, seed)
+    if comp is not None:
+        if problem.drawing is None:
+            problem.drawing = comp.drawing
+        if not isinstance(problem.geometry, Guarded):
+            problem.geometry = Guarded(problem.geometry, comp.plugin, f"{comp.label} geometry", GEOMETRY_METHODS)
+    return problem
 
 
 def make_planners(host: PluginHost, config: dict, stats: Stats):
     p = config["planner"]
     task_comp = host["task_planners"].get(p["task"])
-    task = task_comp.factory(dict(config["task_planner"].get(p["task"], {})))
+    with blame(task_comp.plugin, task_comp.label):
+        task = task_comp.factory(dict(config["task_planner"].get(p["task"], {})))
     motion_comp = host["motion_planners"].get(p["motion"])
     family = p["motion"].split(":")[0]
     options = {k: v for k, v in config["motion_planner"].items() if not isinstance(v, dict)}
     options.update(config["motion_planner"].get(family, {}))
-    motion = motion_comp.factory(options)
+    with blame(motion_comp.plugin, motion_comp.label):
+        motion = motion_comp.factory(options)
     motion.stats = stats
-    return task, motion
+    motion.seed = p["seed"]
+    return _TaskPlannerGuard(task, task_comp), Guarded(motion, motion_comp.plugin, motion_comp.label, ("plan",))
+
+
+class _TaskPlannerGuard(Guarded):
+    """A task planner whose exceptions, and answers with status "error", name its plugin."""
+
+    def __init__(self, task, comp):
+        super().__init__(task, comp.plugin, comp.label, ("plan", "validate_plan"))
+
+    def plan(self, model, state, timeout):
+        plugin, component, _ = self._guard
+        res = self.__getattr__("plan")(model, state, timeout)
+        if res.status == "error":
+            raise PluginFault(plugin, component, ComponentFailed(res.reason))
+        return res
 
 
 def generators_for(host: PluginHost, model: TaskModel, config: dict) -> dict:
-    out = {}
+    """Action name -> its pose generator, its faults attributed to its plugin; each carries
+    ``labels`` (action -> "pose generator 'name'") for the loop's reports."""
+    out, classes = {}, {}
     for action in model.problem.domain.actions:
         name = config["pose_generators"].get(action.name, action.pose_generator)
         if name is None:
             raise UserError(f"The action '{action.name}' has no pose generator; set [pose_generators] {action.name} = \"...\".")
-        out[action.name] = host["pose_generators"].get(name).factory
+        comp = host["pose_generators"].get(name)
+        if isinstance(comp.factory, type) and issubclass(comp.factory, EpochState):
+            # one guarded subclass per class: the actions it serves still share one instance per epoch
+            if comp.factory not in classes:
+                classes[comp.factory] = _guarded_epoch_state(comp.factory, comp.plugin)
+            out[action.name] = classes[comp.factory]
+        else:
+            out[action.name] = _generator(comp)
+        out[action.name].labels[action.name] = comp.label
     return out
 
 
-def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), pddl_dir=None) -> Result:
-    """Solve a problem: ``source`` is a config path, a problem file, an output folder or a dict.
-    ``pddl_dir``: write every task-planner call's problem there as PDDL."""
+def _generator(comp):
+    """A pose generator's candidates as a list, its faults attributed."""
+
+    def candidates(problem, step, world, rng):
+        with blame(comp.plugin, comp.label):
+            return list(comp.factory(problem, step, world, rng))
+
+    candidates.labels = {}
+    return candidates
+
+
+def _guarded_epoch_state(cls, plugin: str):
+    def __call__(self, problem, step, world, rng):
+        with blame(plugin, self.labels.get(step.action, f"pose generator '{cls.__name__}'")):
+            return list(cls.__call__(self, problem, step, world, rng))
+
+    return type(cls.__name__, (cls,), {"__call__": __call__, "labels": {}, "__qualname__": cls.__qualname__})
+
+
+def translators_for(host: PluginHost, config: dict) -> list:
+    out = []
+    for name in config["planner"]["translators"]:
+        comp = host["failure_translators"].get(name)
+        out.append((name, blamed(comp.factory, comp.plugin, comp.label)))
+    return out
+
+
+@dataclass
+class Prepared:
+    """Everything a run needs, built and checked before the loop starts (``interlayer check`` stops here)."""
+
+    config: dict
+    problem: object
+    model: TaskModel
+    task: object
+    motion: object
+    generators: dict
+    translators: list
+    stats: Stats
+
+
+def prepare(source, overrides=None, host: PluginHost | None = None) -> Prepared:
+    """Resolve the config, build the problem, abstract it and select every named component: each
+    mistake a run would meet (unknown names, bad domain declarations, plugins that failed to load)
+    is raised here as a UserError."""
     config = resolve_config(source, overrides)
     host = host or PluginHost()
     problem = build_problem(host, config)
     model = abstract(problem)
     stats = Stats()
     task, motion = make_planners(host, config, stats)
-    task.pddl_dir = pddl_dir
-    translators = [(n, host["failure_translators"].get(n).factory) for n in config["planner"]["translators"]]
+    return Prepared(config, problem, model, task, motion, generators_for(host, model, config),
+                    translators_for(host, config), stats)
+
+
+def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), pddl_dir=None) -> Result:
+    """Solve a problem: ``source`` is a config path, a problem file, an output folder or a dict;
+    ``overrides`` a list of ``"section.key=value"`` strings or a dict ``{"section.key": value}``.
+    ``pddl_dir``: write every task-planner call's problem there as PDDL.
+
+    Raises ``UserError`` for bad input, ``PluginFault`` for an exception in a plugin's code and
+    ``Interrupted`` (a ``KeyboardInterrupt`` whose ``result`` holds the run so far) on Ctrl-C."""
+    host = host or PluginHost()
+    run = prepare(source, overrides, host)
+    config, problem, model, stats = run.config, run.problem, run.model, run.stats
+    run.task.pddl_dir = pddl_dir
     p = config["planner"]
     settings = LoopSettings(time_limit=float(p["time_limit"]), max_traj_count=p["max_traj_count"],
                             max_refine_attempts=p["max_refine_attempts"], task_timeout=float(p["task_timeout"]),
-                            seed=p["seed"])
+                            seed=p["seed"], shortcut=p["shortcut"])
+    if hasattr(run.task, "prepare"):  # imports and translation before the clock starts
+        run.task.prepare(model)
+    if hasattr(run.motion, "prepare"):
+        run.motion.prepare()
     trace = Trace([host.on_event, *listeners])
+    for warning in host.warnings:
+        trace.emit("warning", message=warning)
     trace.emit("start", problem=problem.name, references=len(model.references), config=config)
     if hasattr(problem.geometry, "stats"):
         problem.geometry.stats = stats
-    layer = InterfaceLayer(model, task, motion, generators_for(host, model, config), translators, settings, trace, stats)
-    result = layer.solve()
+    layer = InterfaceLayer(model, run.task, run.motion, run.generators, run.translators, settings, trace, stats)
+    try:
+        result = layer.solve()
+    except Interrupted as stop:
+        stop.result.config = config
+        raise
     result.config = config
     return result
 
@@ -143,9 +256,20 @@ def _json_default(o):
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
+@dataclass
+class Validation:
+    violations: list  # one sentence each; empty: valid
+    checked: list  # what was checked, e.g. "task plan replayed symbolically"
+
+
 def validate(out_dir, host: PluginHost | None = None) -> list[str]:
     """Independent check of a solved run: the task plan is replayed symbolically from the
     abstract initial state, and the domain re-checks the written trajectory. Returns violations."""
+    return validation(out_dir, host).violations
+
+
+def validation(out_dir, host: PluginHost | None = None) -> Validation:
+    """``validate`` with a list of what could be checked (a domain may have no trajectory validator)."""
     from .domain import GroundStep
     from .planning import check_plan
 
@@ -153,27 +277,41 @@ def validate(out_dir, host: PluginHost | None = None) -> list[str]:
     for name in ("result.json", "config.toml"):
         if not (out / name).exists():
             raise UserError(f"{out} has no {name}; give a folder written by 'interlayer plan --out'.")
-    result = json.loads((out / "result.json").read_text())
+    result = _read_json(out / "result.json")
     if result.get("status") != "solved":
-        return [f"the run did not solve the problem (status {result.get('status')}): nothing to validate"]
+        return Validation([f"the run did not solve the problem (status {result.get('status')}): nothing to validate"], [])
     config = resolve_config(out)
     host = host or PluginHost()
     problem = build_problem(host, config)
     model = abstract(problem)
     plan = [GroundStep(s["action"], tuple(s["args"])) for s in result["plan"]]
-    violations = []
+    violations, checked = [], ["task plan replayed symbolically"]
     why = check_plan(model, model.init, plan)
     if why:
         violations.append(f"task plan: {why}")
     if not (out / "trajectory.json").exists():
-        return violations + ["no trajectory.json: the geometric refinement cannot be checked"]
-    trajectory = json.loads((out / "trajectory.json").read_text())
+        return Validation(violations + ["no trajectory.json: the geometric refinement cannot be checked"], checked)
+    trajectory = _read_json(out / "trajectory.json")
     mismatch = _steps_mismatch(plan, trajectory.get("steps", []))
     if mismatch:
-        return violations + [mismatch]
+        return Validation(violations + [mismatch], checked)
+    checked.append("trajectory steps match the plan")
     if hasattr(problem.geometry, "validate"):
         violations += problem.geometry.validate(plan, trajectory)
-    return violations
+        checked.append("trajectory re-checked by the domain")
+    else:
+        checked.append(f"trajectory NOT re-checked: the domain '{problem.domain.name}' has no trajectory validator")
+    return Validation(violations, checked)
+
+
+def _read_json(path: Path) -> dict:
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise UserError(f"{path} is not a readable JSON file ({exc}); rewrite it with 'interlayer plan --out'.") from None
+    if not isinstance(data, dict):
+        raise UserError(f"{path} does not hold a JSON object; rewrite it with 'interlayer plan --out'.")
+    return data
 
 
 def _steps_mismatch(plan, steps) -> str:

@@ -10,8 +10,9 @@ import os
 import sys
 
 from .errors import UserError
+from .faults import PluginFault
 
-EXIT_OK, EXIT_NOT_SOLVED, EXIT_USER_ERROR = 0, 1, 2
+EXIT_OK, EXIT_NOT_SOLVED, EXIT_USER_ERROR, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 
 def log(msg: str) -> None:
@@ -42,6 +43,8 @@ def progress_printer(verbose: bool):
             log(f"{t} reset (epoch {e['epoch']}): {e['reason']}; learned facts cleared, generators reseeded")
         elif kind == "refined":
             log(f"{t} refinement found for all {e['steps']} steps")
+        elif kind == "warning":
+            log(f"warning: {e['message']}")
         elif kind == "attempt" and verbose:
             verdict = "ok" if e["ok"] else (e["failure"] or {}).get("detail") or "failed"
             log(f"{t}   {e['mode']} step {e['step']} {e['action']} [{e['candidate']}]: {verdict}")
@@ -51,12 +54,21 @@ def progress_printer(verbose: bool):
 
 def cmd_plan(args) -> int:
     from . import api
+    from .loop import Interrupted
 
     listeners = [] if args.quiet else [progress_printer(args.verbose)]
     if args.dump_pddl and not args.out:
         raise UserError("--dump-pddl writes into OUT_DIR/pddl/: give --out DIR as well.")
     pddl_dir = f"{args.out}/pddl" if args.dump_pddl else None
-    result = api.solve(args.source, overrides=args.set, listeners=listeners, pddl_dir=pddl_dir)
+    try:
+        result = api.solve(args.source, overrides=args.set, listeners=listeners, pddl_dir=pddl_dir)
+    except Interrupted as stop:  # keep what was done: the trace so far explains the run
+        if args.out:
+            api.write_outputs(stop.result, args.out)
+        log(f"interrupted{f'; wrote the trace so far to {args.out}/trace.json' if args.out else ''}")
+        if args.json:
+            print(json.dumps(stop.result.to_json()))
+        return EXIT_INTERRUPTED
     if args.out:
         api.write_outputs(result, args.out)
     data = result.to_json()
@@ -85,13 +97,13 @@ def cmd_plan(args) -> int:
 
 def cmd_check(args) -> int:
     from . import api
-    from .abstraction import abstract
     from .logic import atom_str
     from .plugins import PluginHost
 
-    config = api.resolve_config(args.source, args.set)
     host = PluginHost()
-    model = abstract(api.build_problem(host, config))
+    for warning in host.warnings:
+        log(f"warning: {warning}")
+    model = api.prepare(args.source, args.set, host).model  # everything 'plan' would check
     refs: dict = {}
     for ref, (sk, _) in model.references.items():
         refs.setdefault(sk, []).append(ref)
@@ -142,9 +154,9 @@ def cmd_plugins(args) -> int:
                             "description": reg.components[n].description} for n in names]
         plugins.append({"name": info.name, "distribution": info.distribution, "version": info.version,
                         "hooks": info.hooks, "components": comps})
-    broken = getattr(host, "broken", {})
+    broken = host.broken
     if args.json:
-        print(json.dumps({"plugins": plugins, "broken": broken}, indent=1))
+        print(json.dumps({"plugins": plugins, "broken": broken, "warnings": host.warnings}, indent=1))
         return EXIT_OK
     for p in plugins:
         print(f"{p['name']}  ({p['distribution']} {p['version']})  hooks: {', '.join(h.replace('interlayer_', '') for h in p['hooks'])}")
@@ -153,22 +165,25 @@ def cmd_plugins(args) -> int:
                 state = "" if c["available"] else f"  [unavailable: {c['reason']}]"
                 print(f"    {kind[:-1].replace('_', ' ')}: {c['name']}{state}")
     for name, why in broken.items():
-        print(f"{name}: failed to load ({why})")
+        print(f"{name}: failed to load, skipped: {why}")
+    for warning in host.warnings:
+        print(f"warning: {warning}")
     return EXIT_OK
 
 
 def cmd_validate(args) -> int:
     from . import api
 
-    violations = api.validate(args.out_dir)
+    report = api.validation(args.out_dir)
+    violations = report.violations
     if args.json:
-        print(json.dumps({"valid": not violations, "violations": violations}))
+        print(json.dumps({"valid": not violations, "violations": violations, "checked": report.checked}))
     elif violations:
         log(f"INVALID: {len(violations)} violation(s):")
         for v in violations:
             log(f"  - {v}")
     else:
-        log(f"{args.out_dir}: valid (task plan replayed symbolically, trajectory re-checked).")
+        log(f"{args.out_dir}: valid ({'; '.join(report.checked)}).")
     return EXIT_OK if not violations else EXIT_NOT_SOLVED
 
 
@@ -244,6 +259,13 @@ def main(argv=None) -> int:
         return EXIT_USER_ERROR
     except KeyboardInterrupt:
         log("interrupted")
+        return EXIT_INTERRUPTED
+    except PluginFault as fault:  # a bug in a plugin: its name, the component, one line
+        if os.environ.get("INTERLAYER_DEBUG"):
+            raise
+        log(f"error: {fault} (set INTERLAYER_DEBUG=1 for the traceback)")
+        if getattr(args, "json", False):
+            print(json.dumps({"status": "error", "reason": str(fault), "plugin": fault.plugin}))
         return EXIT_NOT_SOLVED
     except Exception as exc:  # an internal error: one sentence, the details only with INTERLAYER_DEBUG
         if os.environ.get("INTERLAYER_DEBUG"):

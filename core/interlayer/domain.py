@@ -84,7 +84,9 @@ class Problem:
 
     ``geometry`` is the domain's refinement runtime (see ``interlayer.refine.Geometry``).
     ``source`` is what is needed to rebuild the problem later (domain name + parameters, or a
-    file's contents), written to ``OUT_DIR/problem.json``.
+    file's contents), written to ``OUT_DIR/problem.json``. ``drawing`` is how visualizers draw it:
+    a module, or its dotted name, with ``draw_scene(geometry, scene, world)`` and
+    ``animation_frames(geometry, scene, trajectory)``; by default the one its domain registered.
     """
 
     domain: DomainSpec
@@ -94,3 +96,4 @@ class Problem:
     geometry: Any
     source: Mapping[str, Any]
     name: str = "problem"
+    drawing: Any = None

@@ -167,6 +167,21 @@ def effect_literals(f: Formula, positive: bool = True):
         yield from effect_literals(f.effect, positive)
 
 
+def free_variables(f: Formula) -> set:
+    """The variables (``?x``) of a formula not bound by one of its own quantifiers."""
+    if isinstance(f, Pred):
+        return {a for a in f.args if a.startswith("?")}
+    if isinstance(f, Not):
+        return free_variables(f.arg)
+    if isinstance(f, (And, Or)):
+        return set().union(*(free_variables(a) for a in f.args))
+    if isinstance(f, Quant):
+        return free_variables(f.body) - {v for v, _ in f.variables}
+    if isinstance(f, When):
+        return free_variables(f.cond) | free_variables(f.effect)
+    return set()
+
+
 def substitute(args: Iterable[str], binding: Mapping[str, str]) -> tuple[str, ...]:
     return tuple(binding.get(a, a) for a in args)
 

@@ -7,18 +7,28 @@ from dataclasses import dataclass
 from . import logic
 from .abstraction import TaskModel
 from .domain import GroundStep
-from .refine import Infeasible, PoseGenerator, Refiner, stable_seed
+from .refine import EpochState, Infeasible, PoseGenerator, Refiner, stable_seed
 from .result import Result
 from .trace import Stats, Trace
+from .watchdog import NoProgress, ProgressWatch
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C during a run; ``result`` holds what was done so far (status "interrupted")."""
+
+    def __init__(self, result):
+        super().__init__("interrupted")
+        self.result = result
 
 
 @dataclass(frozen=True)
 class LoopSettings:
     time_limit: float = 600.0
     max_traj_count: int = 10
-    max_refine_attempts: int = 40
+    max_refine_attempts: int = 8  # failed attempts per plan step in one TryRefine call, x (epoch + 1)
     task_timeout: float = 60.0
     seed: int = 0
+    shortcut: bool = True  # drop useless steps after a solve (shortcut.py)
 
 
 def plan_json(plan) -> list:
@@ -40,9 +50,12 @@ class InterfaceLayer:
         self.trace = trace or Trace()
         self.stats = stats or Stats()
         self.epoch = 0  # bumped by every MaxTrajCount reset: reseeds the pose generators
-        self.learned: list = []
+        self._epoch_states: dict = {}  # EpochState class -> its instance for this epoch
+        self.learned: list = []  # facts learned in this epoch (a reset clears them)
         self.task_calls = 0
         self.replans = 0
+        self.watch = ProgressWatch(model)
+        self.plan: list = []
 
     # -- pieces -----------------------------------------------------------------------------
     def _time_left(self) -> float:
@@ -64,15 +77,34 @@ class InterfaceLayer:
         return list(res.plan) if res.status == "solved" else None
 
     def make_generator(self, index: int, step: GroundStep, world) -> PoseGenerator:
-        factory = self.generators[step.action]
+        factory = self._generator(step.action)
         problem = self.model.problem
 
         def candidates(rng):
             with self.stats.timer("pose_generation"):
                 items = list(factory(problem, step, world, rng))
+            if not items:
+                label = getattr(factory, "labels", {}).get(step.action, f"pose generator of '{step.action}'")
+                self.watch.generator_empty(label, index, step)
             return items
 
         return PoseGenerator(candidates, stable_seed(self.settings.seed, self.epoch, index, step))
+
+    def _generator(self, action: str):
+        """The action's generator function; an ``EpochState`` subclass gets one fresh instance per
+        epoch, shared by every action it serves (Alg. 1, line 16: reset with a new random seed)."""
+        factory = self.generators[action]
+        if not (isinstance(factory, type) and issubclass(factory, EpochState)):
+            return factory
+        if factory not in self._epoch_states:
+            self._epoch_states[factory] = factory(stable_seed(self.settings.seed, self.epoch, factory.__qualname__))
+        return self._epoch_states[factory]
+
+    def new_epoch(self):
+        """Alg. 1, lines 15-16: forget the learned facts and reseed the pose generators."""
+        self.epoch += 1
+        self._epoch_states.clear()
+        self.learned = []
 
     def translate(self, failure, step: GroundStep) -> set:
         facts = set()
@@ -89,31 +121,55 @@ class InterfaceLayer:
 
     def _on_attempt(self, step, candidate, outcome, partial, cached):
         self.stats.count("refinement_attempts")
+        self.watch.attempt(step, self.plan[step], candidate, outcome)
         self.trace.emit("attempt", mode="partial" if partial else "error-free", step=step,
                         action=str(self.plan[step]), candidate=candidate.label, ok=outcome.ok, cached=cached,
                         failure=outcome.failure.to_json() if outcome.failure else None)
+
+    def _shortcut(self, init, world0, outcomes):
+        """Drop steps the solved plan does not need (beyond the paper; see shortcut.py)."""
+        from .shortcut import shortcut
+
+        def accepted(dropped, shorter):
+            self.trace.emit("shortcut", dropped=plan_json(dropped), plan=plan_json(shorter))
+
+        before = len(self.plan)
+        self.plan, outcomes = shortcut(self.plan, outcomes, self.model, init | frozenset(self.learned), self.geometry,
+                                       self.motion, world0, self._out_of_time, accepted, self.stats)
+        self.stats.count("plan_length_before_shortcut", before)
+        self.stats.count("plan_length", len(self.plan))
+        return outcomes
 
     # -- Alg. 1 -----------------------------------------------------------------------------
     def solve(self) -> Result:
         t0 = time.perf_counter()
         self.deadline = t0 + self.settings.time_limit
+        if self.motion is not None:  # a motion planner never plans past the run's time limit
+            self.motion.deadline = self.deadline
         try:
             status, reason, refinement = self._run()
-        except Infeasible as exc:
+        except (Infeasible, NoProgress) as exc:
             status, reason, refinement = "unsolvable", str(exc), None
+        except KeyboardInterrupt:
+            status, reason, refinement = "interrupted", "interrupted by the user (Ctrl-C)", None
         self.stats.times["total"] = time.perf_counter() - t0
         accounted = sum(v for k, v in self.stats.times.items() if k != "total")
         self.stats.times["interface"] = max(0.0, self.stats.times["total"] - accounted)
         self.trace.emit("end", status=status, reason=reason)
-        return Result(status=status, reason=reason, plan=list(self.plan) if status == "solved" else [],
+        result = Result(status=status, reason=reason, plan=list(self.plan) if status == "solved" else [],
                       learned_facts=list(self.learned), replans=self.replans, task_planner_calls=self.task_calls,
                       times=dict(self.stats.times), counts=dict(self.stats.counts), seed=self.settings.seed,
                       refinement=refinement, trace=self.trace, problem=self.model.problem, model=self.model)
+        if status == "interrupted":
+            raise Interrupted(result)
+        return result
 
     def _run(self):
         init = self.model.init
         self.plan = []
         plan = self.call_task_planner(init, 0)  # line 2
+        if plan is None and (self.last_task_status == "timeout" or self._out_of_time()):
+            return "timeout", f"the task planner found no plan for the initial state within the time limit of {self.settings.time_limit:g} s", None
         if plan is None:
             return "unsolvable", "the task planner found no plan for the initial state", None
         self.plan, states = plan, self.progress_all(init, plan)
@@ -131,14 +187,20 @@ class InterfaceLayer:
                     why = self.task_planner.validate_plan(self.model, init, self.plan)
                 if why:
                     raise RuntimeError(f"the final task plan failed validation: {why}")
-                return "solved", "", [done.outcomes[i] for i in range(len(self.plan))]  # line 6
+                outcomes = [done.outcomes[i] for i in range(len(self.plan))]
+                if self.settings.shortcut:
+                    outcomes = self._shortcut(init, world0, outcomes)
+                return "solved", "", outcomes  # line 6
             if self._out_of_time():
                 break
             self.trace.emit("refine", mode="partial", from_step=step, plan=plan_json(self.plan), epoch=self.epoch)
             traj_count, new_plan = 0, None
             for partial in refiner.try_refine(self.plan, step, world, prefix, partial=True):  # lines 7-8
                 f = partial.fail_step
-                facts = self.translate(partial.failure, self.plan[f]) - states[f]
+                facts = self.translate(partial.failure, self.plan[f])
+                if not facts:
+                    self.watch.untranslated(partial.failure, self.plan[f])
+                facts -= states[f]
                 if not facts:
                     continue  # nothing new to tell the task planner: try the next failure
                 traj_count += 1
@@ -162,12 +224,16 @@ class InterfaceLayer:
                 if traj_count >= self.settings.max_traj_count or self._out_of_time():
                     break
             if new_plan is None and not self._out_of_time():  # lines 14-17
-                self.epoch += 1
+                self.new_epoch()
+                refiner.max_attempts = self.settings.max_refine_attempts * (self.epoch + 1)
                 states = self.progress_all(init, self.plan)  # learned facts cleared
                 step, prefix, world = 0, {}, world0
                 self.trace.emit("reset", epoch=self.epoch, traj_count=traj_count,
                                 reason="MaxTrajCount reached" if traj_count >= self.settings.max_traj_count
                                 else "no partial refinement led to a solvable state")
+                self.stats.count("resets")
+                self.watch.reset(traj_count, self.plan)
+            self.watch.check_trace(len(self.trace.events))
         return "timeout", f"the time limit of {self.settings.time_limit:g} s was reached before a refinement was found", None
 
 

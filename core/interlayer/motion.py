@@ -94,10 +94,14 @@ class MotionPlanner:
     time_limit: float = 1.0
     stats: object = None
     options: dict = field(default_factory=dict)
+    deadline: float | None = None  # time.perf_counter() at which the run's time limit ends (set by the loop)
+    seed: int = 0  # the run's seed (set by the loop): a randomized planner derives its RNG seeds from it
 
     def plan(self, query: MotionQuery, time_limit: float | None = None) -> MotionPlan:
         t0 = time.perf_counter()
         limit = self.time_limit if time_limit is None else time_limit
+        if self.deadline is not None:
+            limit = max(0.0, min(limit, self.deadline - t0))
         space = query.space
         start_ok, goal_ok = query.is_valid(query.start), query.is_valid(query.goal)
         path = None
@@ -108,6 +112,8 @@ class MotionPlanner:
         # GetMPErrors: relax the movable objects and see what the relaxed path runs into.
         if not (query.is_valid_static(query.start) and query.is_valid_static(query.goal)):
             return MotionPlan(False, reason="start or goal collides with fixed obstacles", time=time.perf_counter() - t0)
+        if self.deadline is not None:
+            limit = max(0.0, min(limit, self.deadline - time.perf_counter()))
         relaxed = self._plan(space, query.start, query.goal, query.is_valid_static, limit)
         if relaxed is None:
             return MotionPlan(False, reason="no path even with movable objects ignored", time=time.perf_counter() - t0)
@@ -120,8 +126,12 @@ class MotionPlanner:
     def _plan(self, space: ConfigSpace, start, goal, is_valid, time_limit):  # pragma: no cover
         raise NotImplementedError
 
+    def prepare(self) -> None:
+        """One-time setup before the run's clock starts (e.g. importing the planning library)."""
+
 
 def segment_valid(space: ConfigSpace, a, b, is_valid) -> bool:
+    """Whether the straight segment a-b is valid at the space's resolution."""
     return all(is_valid(q) for q in space.densify([a, b]))
 
 

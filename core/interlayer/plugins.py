@@ -9,8 +9,10 @@ import pluggy
 
 from . import hookspecs
 from .errors import UserError, closest
+from .faults import PluginFault, blame
 
 ENTRY_POINT_GROUP = "interlayer.plugins"
+BUILTIN_DISTRIBUTION = "interlayer"
 KINDS = ("task_planners", "motion_planners", "domains", "pose_generators", "failure_translators", "visualizers")
 
 
@@ -23,6 +25,13 @@ class Component:
     available: bool = True
     reason: str = ""
     params: dict = field(default_factory=dict)
+    drawing: object = None  # domains: a module (or its dotted name) with draw_scene / animation_frames
+
+    @property
+    def label(self) -> str:
+        return f"{self.kind_label} '{self.name}'"
+
+    kind_label: str = ""
 
 
 class Registry:
@@ -32,12 +41,30 @@ class Registry:
         self.kind = kind
         self.components: dict[str, Component] = {}
         self.current_plugin = ""
+        self.shadowed: list[str] = []  # one sentence per refused duplicate name
+        self.broken_plugins: dict[str, str] = {}  # plugin -> why it failed to load (for Unknown-name errors)
 
-    def add(self, name: str, factory: Callable, description: str = "", params: dict | None = None):
-        self.components[name] = Component(name, factory, description, self.current_plugin, params=dict(params or {}))
+    @property
+    def label(self) -> str:
+        return self.kind.replace("_", " ")[:-1]
+
+    def add(self, name: str, factory: Callable, description: str = "", params: dict | None = None, drawing=None):
+        """Register a component. Domains may pass ``params`` (accepted problem keys with defaults)
+        and ``drawing`` (a module, or its dotted name, with ``draw_scene`` and ``animation_frames``)."""
+        self._put(Component(name, factory, description, self.current_plugin, params=dict(params or {}), drawing=drawing))
 
     def unavailable(self, name: str, reason: str, description: str = ""):
-        self.components[name] = Component(name, None, description, self.current_plugin, False, reason)
+        """Record a component that cannot run here (e.g. a missing optional dependency)."""
+        self._put(Component(name, None, description, self.current_plugin, False, reason))
+
+    def _put(self, comp: Component):
+        comp.kind_label = self.label
+        old = self.components.get(comp.name)
+        if old is not None and old.plugin != comp.plugin:  # the first registration keeps the name
+            self.shadowed.append(f"the plugin '{comp.plugin}' registers the {self.label} '{comp.name}', which the plugin "
+                                 f"'{old.plugin}' already provides; ignored (rename it, e.g. '{comp.plugin}:{comp.name}')")
+            return
+        self.components[comp.name] = comp
 
     def names(self, available_only: bool = True) -> list[str]:
         return sorted(n for n, c in self.components.items() if c.available or not available_only)
@@ -46,8 +73,10 @@ class Registry:
         label = self.kind.replace("_", " ")[:-1]
         comp = self.components.get(name)
         if comp is None:
+            broken = "".join(f"; the plugin '{p}' failed to load ({why}), so it may be the one missing"
+                             for p, why in self.broken_plugins.items())
             raise UserError(
-                f"Unknown {label} '{name}'{closest(name, self.components)}; available: {', '.join(self.names()) or 'none'}."
+                f"Unknown {label} '{name}'{closest(name, self.components)}; available: {', '.join(self.names()) or 'none'}{broken}."
             )
         if not comp.available:
             raise UserError(f"The {label} '{name}' is not available here: {comp.reason}.")
@@ -64,32 +93,56 @@ class PluginInfo:
 
 
 class PluginHost:
-    """A plugin manager with its registries; no global state, so tests can build several."""
+    """A plugin manager with its registries; no global state, so tests can build several.
+
+    A plugin that fails to import, to validate against the hook specifications or to register its
+    components is skipped and recorded in ``broken`` (name -> one sentence); the others work."""
 
     def __init__(self, load_entry_points: bool = True, plugins: tuple = ()):
         self.pm = pluggy.PluginManager("interlayer")
         self.pm.add_hookspecs(hookspecs)
         self.dists: dict[str, tuple[str, str]] = {}
+        self.broken: dict[str, str] = {}
         if load_entry_points:
-            for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
-                if self.pm.get_plugin(ep.name) is not None:
+            # The built-in plugins first, so their component names cannot be taken by another.
+            eps = sorted(importlib.metadata.entry_points(group=ENTRY_POINT_GROUP),
+                         key=lambda ep: (ep.dist is None or ep.dist.name != BUILTIN_DISTRIBUTION))
+            for ep in eps:
+                if self.pm.get_plugin(ep.name) is not None or ep.name in self.broken:
                     continue
+                dist = (ep.dist.name, ep.dist.version) if ep.dist else ("?", "?")
                 try:
                     module = ep.load()
                 except Exception as exc:  # a broken third-party plugin must not break the CLI
-                    self.broken = getattr(self, "broken", {})
-                    self.broken[ep.name] = f"{type(exc).__name__}: {exc}"
+                    self.broken[ep.name] = f"importing {ep.value} raised {type(exc).__name__}: {exc}"
                     continue
-                self.pm.register(module, name=ep.name)
-                dist = ep.dist
-                self.dists[ep.name] = (dist.name, dist.version) if dist else ("?", "?")
+                self._register(ep.name, module, dist)
         for name, module in plugins:
-            self.pm.register(module, name=name)
-            self.dists[name] = ("(registered in code)", "")
-        self.pm.check_pending()
+            self._register(name, module, ("(registered in code)", ""))
         self.registries = {kind: Registry(kind) for kind in KINDS}
         self._contributions: dict[str, dict] = {}
         for name, plugin in self.pm.list_name_plugin():
+            self._register_components(name, plugin)
+        for reg in self.registries.values():
+            reg.broken_plugins = self.broken
+
+    def _register(self, name: str, module, dist) -> None:
+        unknown = [h for h in dir(module) if h.startswith("interlayer_") and not hasattr(hookspecs, h)
+                   and callable(getattr(module, h))]
+        if unknown:
+            hooks = [h for h in dir(hookspecs) if h.startswith("interlayer_")]
+            self.broken[name] = f"'{unknown[0]}' is not an Interlayer hook{closest(unknown[0], hooks)}"
+            return
+        try:
+            self.pm.register(module, name=name)
+        except pluggy.PluginValidationError as exc:
+            self.broken[name] = _validation_sentence(exc)
+            return
+        self.dists[name] = dist
+
+    def _register_components(self, name: str, plugin) -> None:
+        added = {}
+        try:
             for kind in KINDS:
                 impl = getattr(plugin, f"interlayer_register_{kind}", None)
                 if impl is None:
@@ -97,8 +150,26 @@ class PluginHost:
                 reg = self.registries[kind]
                 reg.current_plugin = name
                 before = set(reg.components)
-                impl(registry=reg)
-                self._contributions.setdefault(name, {})[kind] = sorted(set(reg.components) - before)
+                with blame(name, f"interlayer_register_{kind} hook"):
+                    impl(registry=reg)
+                added[kind] = sorted(set(reg.components) - before)
+        except PluginFault as fault:
+            for kind, names in added.items():
+                for n in names:
+                    del self.registries[kind].components[n]
+            for kind in KINDS:  # the failing hook's partial registrations too
+                reg = self.registries[kind]
+                for n in [n for n, c in reg.components.items() if c.plugin == name]:
+                    del reg.components[n]
+            self.broken[name] = f"its {fault.sentence()}"
+            self.pm.unregister(name=name)
+            return
+        self._contributions[name] = added
+
+    @property
+    def warnings(self) -> list[str]:
+        """Component names a plugin tried to take from another (each ignored)."""
+        return [w for reg in self.registries.values() for w in reg.shadowed]
 
     def __getitem__(self, kind: str) -> Registry:
         return self.registries[kind]
@@ -112,7 +183,28 @@ class PluginHost:
         return out
 
     def load_problem(self, path, params, seed):
-        return self.pm.hook.interlayer_load_problem(path=path, params=params, seed=seed)
+        """The first plugin that reads the file builds the Problem (None: no plugin can)."""
+        for impl in reversed(self.pm.hook.interlayer_load_problem.get_hookimpls()):
+            with blame(impl.plugin_name, "problem loader (interlayer_load_problem)"):
+                problem = impl.function(path=path, params=params, seed=seed)
+            if problem is not None:
+                return problem
+        return None
 
     def on_event(self, event):
-        self.pm.hook.interlayer_on_event(event=event)
+        for impl in self.pm.hook.interlayer_on_event.get_hookimpls():
+            with blame(impl.plugin_name, "event observer (interlayer_on_event)"):
+                impl.function(event=event)
+
+
+def _validation_sentence(exc) -> str:
+    """pluggy's three-line validation message as one sentence that names the expected parameters."""
+    import inspect
+
+    text = str(exc)
+    hook = text.split("for hook '", 1)[1].split("'", 1)[0] if "for hook '" in text else ""
+    spec = getattr(hookspecs, hook, None)
+    if spec is None:
+        return text.strip().splitlines()[-1]
+    expected = ", ".join(inspect.signature(spec).parameters)
+    return f"its {hook} has parameters that are not the hook's: {text.strip().splitlines()[-1]}; use ({expected})"

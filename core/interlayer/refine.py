@@ -8,7 +8,7 @@ and in partial-trajectory mode yields each failure with the prefix that was refi
 from __future__ import annotations
 
 import zlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Iterable, Iterator, Mapping, Protocol
 
 import numpy as np
@@ -29,7 +29,7 @@ class Candidate:
 class Failure:
     """Why an action could not be refined (the failed geometric preconditions)."""
 
-    kind: str  # "obstruction", "ik", "unreachable", ...
+    kind: str  # a key of the action's learn templates ("obstruction"), or another kind ("ik", "unreachable")
     objects: tuple = ()  # the obstructing objects, for "obstruction"
     detail: str = ""
 
@@ -45,6 +45,7 @@ class StepOutcome:
     world: Any = None
     segments: list = field(default_factory=list)
     failure: Failure | None = None
+    candidate: Candidate | None = None  # what was refined (set by TryRefine on success)
 
 
 class Infeasible(Exception):
@@ -53,13 +54,21 @@ class Infeasible(Exception):
 
 
 class Geometry(Protocol):
-    """The domain's refinement runtime."""
+    """The domain's refinement runtime (``Problem.geometry``). Optional methods:
+    ``trajectory_json(plan, outcomes) -> dict`` (written to ``trajectory.json``: ``{"initial":
+    snapshot, "steps": [{"action", "args", "segments"}, ...]}``, one entry per plan step) and
+    ``validate(plan, trajectory) -> list of violations`` (used by ``interlayer validate``)."""
 
-    def initial_world(self) -> Any: ...
+    def initial_world(self) -> Any:
+        """The low-level state at the start: any value; worlds are never mutated, only replaced."""
 
-    def refine_step(self, step: GroundStep, world: Any, candidate: Candidate, motion) -> StepOutcome: ...
+    def refine_step(self, step: GroundStep, world: Any, candidate: Candidate, motion) -> StepOutcome:
+        """Refine ``step`` from ``world`` through ``candidate.waypoints`` with the ``motion``
+        planner: ``StepOutcome(True, new_world, segments)`` or ``StepOutcome(False,
+        failure=Failure(kind, objects))``; ``kind`` selects the action's ``learn`` templates."""
 
-    def snapshot(self, world: Any) -> dict: ...
+    def snapshot(self, world: Any) -> dict:
+        """A JSON-able picture of ``world`` (written into failure events and drawn by visualizers)."""
 
 
 class PoseGenerator:
@@ -79,6 +88,28 @@ class PoseGenerator:
             return self.reset_and_get_first()
         self.index += 1
         return next(self._it, None)
+
+
+class EpochState:
+    """Base class for a pose generator that keeps state between calls, e.g. candidates sampled once
+    and re-ranked in every world, so that an obstruction learned for a candidate stays true of it.
+
+    Register the class itself as the generator. The loop makes a fresh instance at every epoch,
+    seeded for that epoch (``self.seed``), so a reset (Alg. 1, line 16) discards the state and
+    reseeds it; one instance serves every action registered with the same class. Calls are
+    ``instance(problem, step, world, rng)``, like a plain generator function. Keep generator state
+    here and nowhere else (never on the geometry): the refinement cache and the paper's
+    completeness argument depend on it."""
+
+    def __init__(self, seed):
+        self.seed = seed
+
+    def rng_for(self, *key) -> np.random.Generator:
+        """A random generator that depends only on this epoch's seed and ``key``."""
+        return np.random.default_rng([*self.seed, *stable_seed(*key)])
+
+    def __call__(self, problem, step, world, rng) -> Iterable[Candidate]:
+        raise NotImplementedError
 
 
 def stable_seed(*parts) -> list[int]:
@@ -102,8 +133,12 @@ class Refinement:
 
 
 class Refiner:
-    """Runs TryRefine for one problem; ``make_generator(i, step, world, epoch)`` builds the
-    PoseGenerator of step i, ``on_attempt`` observes each motion-planning attempt."""
+    """Runs TryRefine for one problem; ``make_generator(i, step, world)`` builds the PoseGenerator
+    of step i, ``on_attempt`` observes each motion-planning attempt.
+
+    ``max_attempts`` bounds the *failed* motion-planning attempts per plan step in one TryRefine
+    call (successes and cached outcomes are free), so the budget scales with the plan's length and
+    a plan whose every step refines is never cut off; the loop raises it at every epoch."""
 
     def __init__(self, geometry, motion, make_generator, max_attempts: int, out_of_time, on_attempt=None, stats=None):
         from .trace import Stats
@@ -126,7 +161,7 @@ class Refiner:
         worlds, outcomes = {step: world0}, dict(prefix)
         chain: list[int] = []  # candidate index per step from `step`: the cache key of a branch
         gens = {step: self.make_generator(step, plan[step], world0)} if step < n else {}
-        i, attempts = step, 0
+        i, failures = step, {}
         while step <= i < n:  # line 4
             if self.out_of_time():
                 return None
@@ -139,19 +174,20 @@ class Refiner:
                     chain.pop()
                 outcomes.pop(i, None)
                 continue
-            if attempts >= self.max_attempts:
-                return None
-            attempts += 1
             key = (tuple(plan[step : i + 1]), tuple(chain), gen.index, id(world0))
             outcome = self._cache.get(key)
             cached = outcome is not None
             if not cached:
+                if failures.get(i, 0) >= self.max_attempts:
+                    return None  # this step's budget is spent: let the loop replan or reset
                 with self.stats.timer("motion_planning"):  # IK and collision checks may be split out inside
                     outcome = self.geometry.refine_step(plan[i], worlds[i], cand, self.motion)
                 self._cache[key] = outcome
+                if not outcome.ok:
+                    failures[i] = failures.get(i, 0) + 1
             self.on_attempt(step=i, candidate=cand, outcome=outcome, partial=partial, cached=cached)
             if outcome.ok:  # line 12
-                outcomes[i], worlds[i + 1] = outcome, outcome.world
+                outcomes[i], worlds[i + 1] = replace(outcome, candidate=cand), outcome.world
                 chain.append(gen.index)
                 i += 1
                 if i < n:

@@ -33,7 +33,7 @@ def make_problem(params, seed):
 @hookimpl
 def interlayer_register_domains(registry):
     registry.add("gripper2d", make_problem, "the paper's Fig. 2: b1 at the end of a corridor behind k obstructing blocks",
-                 params=PARAMS)
+                 params=PARAMS, drawing="interlayer_gripper2d.draw")
 
 
 @hookimpl

@@ -25,9 +25,9 @@ from dataclasses import replace
 import numpy as np
 from interlayer.domain import ActionSpec, DomainSpec, Problem, Skolem
 from interlayer.errors import UserError
-from interlayer.refine import Candidate
+from interlayer.refine import Candidate, EpochState, stable_seed
 
-from .scene import REST_GAP, Layout, ObjectSpec, table_top
+from .scene import REST_GAP, Layout, ObjectSpec, base_limits, table_top
 from .world import pose4
 
 log = logging.getLogger("interlayer.pr2")
@@ -38,6 +38,7 @@ CLUTTER_BASE_LIMITS = ((-1.0, 3.0), (-2.0, 2.0))
 RADIUS, HEIGHT = 0.04, 0.2
 SLOTS = 2
 TORSO = 0.28  # the cubby scene uses 0.2 at a 0.72 m table; the clutter table is 0.08 m higher
+BASE_CLEARANCE = 0.34  # m: the base centre keeps this far from the table's edge (half the PR2's footprint)
 
 CLUTTER_DOMAIN = DomainSpec(
     name="pr2-clutter",
@@ -93,9 +94,10 @@ CLUTTER_DOMAIN = DomainSpec(
 
 
 # -- scenes ------------------------------------------------------------------------------------------
-def clutter_layout(seed: int, n: int) -> Layout:
+def clutter_layout(seed: int, n: int, approach: str = "free") -> Layout:
     """Clutter-N: N cylinders (r 0.04, h 0.2) at uniformly random non-overlapping spots (>= 1 cm apart,
-    >= 2 cm inside the edge) of a 0.95 x 1.2 table (top z 0.8) centred at (1.375, 0); a random target."""
+    >= 2 cm inside the edge) of a 0.95 x 1.2 table (top z 0.8) centred at (1.375, 0); a random target.
+    ``approach = "front"`` keeps the base on the table's near long side (x below its edge at 0.9 m)."""
     rng = np.random.default_rng(seed)
     (cx, cy), (sx, sy), top = CLUTTER_TABLE["centre"], CLUTTER_TABLE["size"], CLUTTER_TABLE["top"]
     fixed = [ObjectSpec("table", "box", (sx, sy, top), (cx, cy, top / 2, 0.0), movable=False)]
@@ -114,8 +116,11 @@ def clutter_layout(seed: int, n: int) -> Layout:
     objects = [ObjectSpec(f"o{i + 1}", "cylinder", (RADIUS, HEIGHT), (x, y, z, 0.0)) for i, (x, y) in enumerate(pts)]
     target = objects[int(rng.integers(n))].name
     regions = {"table": (cx - sx / 2, cx + sx / 2, cy - sy / 2, cy + sy / 2)}
+    limits = CLUTTER_BASE_LIMITS
+    if approach == "front":
+        limits = ((limits[0][0], cx - sx / 2 - BASE_CLEARANCE), limits[1])
     return Layout(fixed, objects, regions, target, "hold", ("side",),
-                  extra={"table_top": top, "base_limits": CLUTTER_BASE_LIMITS, "torso_height": TORSO})
+                  extra={"table_top": top, "base_limits": limits, "torso_height": TORSO, "approach": approach})
 
 
 def clutter_problem(layout: Layout, source: dict, name: str, slots: int = SLOTS) -> Problem:
@@ -141,9 +146,33 @@ def make_clutter_problem(params, seed):
     if params.get("goal", "hold") != "hold" or list(params.get("grasps", ["side"])) != ["side"]:
         raise UserError("The clutter scene's goal is fixed (hold the target, side grasps only): "
                         "leave problem.goal and problem.grasps at their defaults.")
-    layout = clutter_layout(seed, n)
-    return clutter_problem(layout, {"domain": "pr2", "params": dict(params), "seed": seed, "layout": layout.to_json()},
-                           f"pr2-clutter{n}")
+    approach = params.get("approach", "free")
+    if approach not in ("free", "front"):
+        raise UserError(f"problem.approach must be \"free\" (drive around the table) or \"front\" (stay on its near "
+                        f"side), got {approach!r}.")
+    layout = clutter_layout(seed, n, approach)
+    problem = clutter_problem(layout, {"domain": "pr2", "params": dict(params), "seed": seed}, f"pr2-clutter{n}")
+    if approach == "front":
+        _reachable_target(problem, np.random.default_rng([seed, n]))
+    problem.source["layout"] = layout.to_json()
+    return problem
+
+
+def _reachable_target(problem, rng):
+    """Front approach: make the target an object that the PR2 can grasp from the near side when
+    nothing is in the way (IK and fixed obstacles only), so that every scene is solvable."""
+    layout, geometry = problem.geometry.layout, problem.geometry
+    world = geometry.initial_world()
+    sampler = ClutterSampler(stable_seed("front", layout.target))
+    edge = layout.regions["table"][0]
+    near = [o.name for o in layout.objects if o.pose[0] < edge + 0.6]  # beyond this no arm reaches
+    for name in [near[k] for k in rng.permutation(len(near))]:
+        if any(sampler.grasp_candidates(problem, world, name, arm) for arm in ARMS):
+            layout.target = name
+            problem.goal = f"(or (Holding {name} left) (Holding {name} right))"
+            return
+    raise UserError("problem.approach=\"front\": no object of this scene can be grasped from the table's near side; "
+                    "choose another planner.seed.")
 
 
 # -- the pybullet-planning JSON format ----------------------------------------------------------------
@@ -170,6 +199,16 @@ def looks_like_pybullet_json(path) -> dict | None:
 
 
 def load_pybullet_json(path, data, params, seed) -> Problem:
+    """The problem of a pybullet-planning JSON file; a malformed file is a UserError naming what is wrong."""
+    try:
+        return _load_pybullet_json(path, data, params, seed)
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError) as exc:
+        what = f"the key {exc}" if isinstance(exc, KeyError) else f"{type(exc).__name__}: {exc}"
+        raise UserError(f"{path.name} is not a pybullet-planning problem Interlayer can read ({what}); "
+                        f"check the file against the format's bodies / robots / task fields.") from None
+
+
+def _load_pybullet_json(path, data, params, seed) -> Problem:
     task = data["task"]
     unsupported = [k for k in UNSUPPORTED_GOALS if task.get(k)]
     if unsupported or not task.get("goal_holding"):
@@ -240,11 +279,14 @@ def _base_near(geometry, x, y, rng, reach=(0.55, 0.95)):
     from .generators import wrap
 
     xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
+    (lx, hx), (ly, hy) = base_limits(geometry.layout)
     for _ in range(20):
         r, a = rng.uniform(*reach), rng.uniform(-math.pi, math.pi)
         bx, by = x + r * math.cos(a), y + r * math.sin(a)
         if xmin - 0.33 < bx < xmax + 0.33 and ymin - 0.33 < by < ymax + 0.33:
             continue  # the base would stand under the table
+        if not (lx <= bx <= hx and ly <= by <= hy):
+            continue
         yaw = math.atan2(y - by, x - bx) + rng.uniform(-0.35, 0.35)
         return (float(bx), float(by), float(wrap(yaw)))
     return None
@@ -265,91 +307,168 @@ def _movables_on(geometry, world, arm, path, ignore, gripper="open"):
     return hit - set(ignore) - {o for o, _ in world.held.values()}
 
 
-def pick(problem, step, world, rng, limit: int = 5, tries: int = 40):
-    """Base pose + side grasp of step's object; candidates ordered by how many objects their approach
-    and raise touch (fewest first: fewer obstructions to learn and clear).
+class ClutterSampler(EpochState):
+    """Clutter's pick and place generators and what they share within one epoch: grasp candidates
+    sampled once per (object, arm, object pose) and re-ranked in each world, and the target's best
+    approach corridors that put-downs keep clear of. The loop makes a fresh instance at every epoch,
+    so a reset discards both and samples anew."""
 
-    The candidates are stable: sampled once per (object, arm, object pose) with an rng of their own
-    and cached on the geometry, then re-ranked in each call's world. An obstruction learned for the
-    best candidate thus stays true of it, and once the task plan has cleared those blockers the same
-    candidate comes first again with nothing in its way (fresh samples would bring fresh blockers)."""
-    obj, arm = step.args[0], step.args[1]
-    bp_ref, gp_ref = step.args[3], step.args[4]
-    geometry = problem.geometry
-    if world.holder(obj) is not None or world.held.get(arm):
-        return
-    ranked = ranked_grasps(problem, world, obj, arm, tries, rng)
-    if obj == geometry.layout.target:  # the put-down sampler keeps clear of its best approaches
-        corridors(geometry)[arm] = [(c[2], c[6]) for c in ranked[:3]]
-    for nhit, _, base, kind, T, wps, _ in ranked[:limit]:
-        yield Candidate((base, *wps), {bp_ref: list(base), gp_ref: T.tolist()},
-                        f"{kind} grasp from base {_fmt(base)} ({nhit[0]} objects on the approach, {nhit[1]} on the way)")
+    def __init__(self, seed):
+        super().__init__(seed)
+        self.grasps: dict = {}  # (obj, arm, pose) -> candidates
+        self.misses: dict = {}  # (obj, arm, pose) -> fruitless searches so far
+        self.corridors: dict = {}  # arm -> [(base, approach xy points)] of the target's best grasps
 
+    def __call__(self, problem, step, world, rng):
+        return self.pick(problem, step, world, rng) if step.action == "pick" else self.place(problem, step, world, rng)
 
-def _grasp_cache(geometry) -> dict:
-    cache = getattr(geometry, "_clutter_grasps", None)
-    if cache is None:
-        cache = geometry._clutter_grasps = {}
-    return cache
+    def pick(self, problem, step, world, rng, limit: int = 5):
+        """Base pose + side grasp of step's object; candidates ordered by how many objects their
+        approach and raise touch (fewest first: fewer obstructions to learn and clear).
 
+        The candidates are stable within the epoch: sampled once per (object, arm, object pose), then
+        re-ranked in each call's world. An obstruction learned for the best candidate thus stays true
+        of it, and once the task plan has cleared those blockers the same candidate comes first again
+        with nothing in its way (fresh samples would bring fresh blockers)."""
+        obj, arm = step.args[0], step.args[1]
+        bp_ref, gp_ref = step.args[3], step.args[4]
+        geometry = problem.geometry
+        if world.holder(obj) is not None or world.held.get(arm):
+            return
+        ranked = self.ranked_grasps(problem, world, obj, arm)
+        if obj == geometry.layout.target:  # the put-down sampler keeps clear of its best approaches
+            self.corridors[arm] = [(c[2], c[6]) for c in ranked[:3]]
+        for nhit, _, base, kind, T, wps, _ in ranked[:limit]:
+            yield Candidate((base, *wps), {bp_ref: list(base), gp_ref: T.tolist()},
+                            f"{kind} grasp from base {_fmt(base)} ({nhit[0]} objects on the approach, {nhit[1]} on the way)")
 
-def corridors(geometry) -> dict:
-    """arm -> [(base, approach xy points)] of the target's best grasps (filled by pick)."""
-    c = getattr(geometry, "_clutter_corridors", None)
-    if c is None:
-        c = geometry._clutter_corridors = {}
-    return c
+    def grasp_candidates(self, problem, world, obj, arm, tries: int = 40):
+        """(base, kind, T, waypoints, tool xy path) candidates for picking obj with arm where it stands;
+        static checks only (IK, fixed obstacles), so they hold in every world with obj at this pose."""
+        from .generators import _bearing, _problem_grasps, _waypoints, check_graspable, grasp_poses
 
+        geometry = problem.geometry
+        P = world.objects[obj]
+        key = (obj, arm, tuple(np.round(P[:3, :4].ravel(), 4)))
+        if key in self.grasps:
+            return self.grasps[key]
+        check_graspable(problem, obj)
+        misses = self.misses.get(key, 0)
+        rng = self.rng_for(*key, misses)  # a function of the epoch and the question only
+        x, y = P[0, 3], P[1, 3]
+        kinds = _problem_grasps(problem)
+        target = obj == geometry.layout.target
+        want = 12 if target else 6
+        n_bases = 3 * tries if target else tries
+        found = []
+        from interlayer_pinocchio import TUCKED_ARMS
 
-def _grasp_candidates(problem, world, obj, arm, tries, rng=None):
-    """(base, kind, T, waypoints, tool xy path) candidates for picking obj with arm where it stands;
-    static checks only (IK, fixed obstacles), so they hold in every world with obj at this pose."""
-    from .generators import _bearing, _problem_grasps, _waypoints, check_graspable, grasp_poses
-
-    geometry = problem.geometry
-    P = world.objects[obj]
-    key = (obj, arm, tuple(np.round(P[:3, :4].ravel(), 4)))
-    cache = _grasp_cache(geometry)
-    if key in cache:
-        return cache[key]
-    check_graspable(problem, obj)
-    import zlib
-
-    misses = cache.get(("miss",) + key, 0)
-    # the first search uses an rng of its own (stable across calls); after a fruitless one (nothing is
-    # cached then), the caller's rng, so that every epoch searches afresh
-    rng = np.random.default_rng(zlib.crc32(repr(key).encode())) if not misses or rng is None else rng
-    x, y = P[0, 3], P[1, 3]
-    kinds = _problem_grasps(problem)
-    target = obj == geometry.layout.target
-    want = 12 if target else 6
-    n_bases = 3 * tries if target else tries
-    found = []
-    from interlayer_pinocchio import TUCKED_ARMS
-
-    # the other arm tucked and nothing held: the candidates must not depend on the world they were asked in
-    w0 = replace(world, held={}, arms={a: tuple(TUCKED_ARMS[a]) for a in ARMS}, grippers={a: "closed" for a in ARMS})
-    for i in range(n_bases + 2 * tries):
-        if i >= n_bases and found:
-            break  # past the first bases, only search on while nothing at all was found
-        base = _base_near(geometry, x, y, rng)
-        if base is None or not _base_free(geometry, w0, base):
-            continue
-        w = replace(w0, base=base)
-        for kind, T in grasp_poses(geometry, obj, P, _bearing(base, x, y), kinds, rng, n_side=2):
-            wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,))
-            if wps is None:
+        # the other arm tucked and nothing held: the candidates must not depend on the world they were asked in
+        w0 = replace(world, held={}, arms={a: tuple(TUCKED_ARMS[a]) for a in ARMS}, grippers={a: "closed" for a in ARMS})
+        for i in range(n_bases + 2 * tries):
+            if i >= n_bases and found:
+                break  # past the first bases, only search on while nothing at all was found
+            base = _base_near(geometry, x, y, rng)
+            if base is None or not _base_free(geometry, w0, base):
                 continue
-            wps = _with_hover(geometry, w, arm, T, wps, rng, obj)
-            found.append((base, kind, T, wps, _reach_xy(base, T)))
-            break
-        if len(found) >= want:
-            break
-    if found:
-        cache[key] = found
-    else:
-        cache[("miss",) + key] = misses + 1
-    return found
+            w = replace(w0, base=base)
+            for kind, T in grasp_poses(geometry, obj, P, _bearing(base, x, y), kinds, rng, n_side=2):
+                wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,))
+                if wps is None:
+                    continue
+                wps = _with_hover(geometry, w, arm, T, wps, rng, obj)
+                found.append((base, kind, T, wps, _reach_xy(base, T)))
+                break
+            if len(found) >= want:
+                break
+        if found:
+            self.grasps[key] = found
+        else:
+            self.misses[key] = misses + 1  # the next call searches with other samples
+        return found
+
+    def ranked_grasps(self, problem, world, obj, arm):
+        """The candidates ranked in ``world``: ((approach hits, transit-line hits), index, base, kind,
+        T, waypoints, footprint), fewest objects in the way first."""
+        geometry = problem.geometry
+        out = []
+        for idx, (base, kind, T, wps, xy) in enumerate(self.grasp_candidates(problem, world, obj, arm)):
+            if not _base_free(geometry, world, base):
+                continue
+            w = replace(world, base=base)
+            with geometry.stats.timer("collision_checking"):
+                # exactly the refinement's first check: the approach (hover descent included), densified
+                hit = geometry._movables_on_line(w.with_gripper(arm, "open"), arm, wps[0], [0.0]) - {obj}
+                hit |= _movables_on(geometry, w, arm, list(wps[1]), (obj,))
+                # a rough guess at the transit's sweep: the straight joint-space line to the pre-grasp
+                sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], wps[0][0]), (obj,), gripper=None)
+            out.append(((len(hit), len(sweep)), idx, base, kind, T, wps, xy))
+        out.sort(key=lambda f: (f[0], f[1]))
+        return out
+
+    def spot_score(self, geometry, world, target, x, y):
+        """Larger is better: near the table's edge (few objects between the arm and the spot, and an object
+        there stands in few other approaches), far from the target and clear of other objects, and never
+        in the corridor the arm will reach through for the target (its best grasps, see pick)."""
+        xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
+        edge = min(x - xmin, xmax - x, y - ymin, ymax - y)
+        d_obj = min((math.hypot(x - Q[0, 3], y - Q[1, 3]) for Q in world.objects.values()), default=1.0)
+        Tt = world.objects.get(target)
+        d_t = math.hypot(x - Tt[0, 3], y - Tt[1, 3]) if Tt is not None else 1.0
+        penalty = 0.0
+        for cands in self.corridors.values():
+            for rank, (_, xy) in enumerate(cands):
+                if any(math.hypot(x - a, y - b) < CORRIDOR for a, b in xy):
+                    penalty = max(penalty, 2.0 if rank == 0 else 0.5)
+        return min(d_obj, 0.25) + 0.5 * min(d_t, 0.6) - 1.5 * edge - penalty
+
+    def place(self, problem, step, world, rng, limit: int = 4, tries: int = 80):
+        """A free table spot (far from the target and other objects first), a base pose to reach it, and
+        the lowering / retreat arm paths."""
+        from .generators import LIFT, PRE_GRASP, _line, _putdown, trans
+
+        obj, arm = step.args[0], step.args[1]
+        bp_ref, pd_ref = step.args[3], step.args[4]
+        geometry = problem.geometry
+        if world.holder(obj) != arm:
+            return
+        G = world.held[arm][1]
+        spots = []
+        geometry.sync(world)
+        for x, y, z in _table_spots(geometry, world, obj, rng, tries):
+            spots.append((self.spot_score(geometry, world, geometry.layout.target, x, y), x, y, z))
+        spots.sort(key=lambda s: -s[0])
+        found = []
+        for rank, (_, x, y, z) in enumerate(spots):
+            if rank >= 3 * limit and found:
+                break  # past the best spots, only search on while nothing at all was found
+            for _ in range(4 if rank < 3 * limit else 8):
+                base = _base_near(geometry, x, y, rng)
+                if base is None or not _base_free(problem.geometry, world, base):
+                    continue
+                P, T = _putdown(G, x, y, z, math.atan2(y - base[1], x - base[0]) + rng.uniform(-0.3, 0.3))
+                w = replace(world, base=base)
+                put = geometry.ik(w, arm, T, rng, attempts=4)
+                if put is None:
+                    continue
+                lower = _line(geometry, w, arm, T, lambda d, T=T: trans(0, 0, d) @ T, LIFT, put, rng)
+                back = _line(geometry, w.with_gripper(arm, "open"), arm, T, lambda d, T=T: T @ trans(-d, 0, 0), PRE_GRASP, put,
+                             rng, gripper="open")
+                if lower is None or back is None:
+                    continue
+                with geometry.stats.timer("collision_checking"):
+                    hit = _movables_on(geometry, w, arm, lower, (), gripper=None)
+                    hit |= _movables_on(geometry, w, arm, back, ())
+                    sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], lower[-1]), (), gripper=None)
+                found.append(((len(hit), len(sweep)), rank, base, x, y, P, T, lower, back))
+                break
+            if len(found) >= limit or (found and found[-1][0] == (0, 0) and len(found) >= 2):
+                break
+        found.sort(key=lambda f: (f[0], f[1]))
+        for nhit, _, base, x, y, P, T, lower, back in found:
+            yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])),
+                            {bp_ref: list(base), pd_ref: T.tolist(), "tloc": (obj, P), "object_pose": P.tolist()},
+                            f"{obj} at {_fmt((x, y))} from base {_fmt(base)} ({nhit[0]} + {nhit[1]} objects in the way)")
 
 
 def _reach_xy(base, T, step=0.05):
@@ -359,26 +478,6 @@ def _reach_xy(base, T, step=0.05):
     d = math.hypot(bx - tx, by - ty)
     n = max(1, int(d / step))
     return [(tx + (bx - tx) * k / n, ty + (by - ty) * k / n) for k in range(n + 1)]
-
-
-def ranked_grasps(problem, world, obj, arm, tries=40, rng=None):
-    """The cached candidates ranked in ``world``: ((approach hits, transit-line hits), index, base,
-    kind, T, waypoints, footprint), fewest objects in the way first."""
-    geometry = problem.geometry
-    out = []
-    for idx, (base, kind, T, wps, xy) in enumerate(_grasp_candidates(problem, world, obj, arm, tries, rng)):
-        if not _base_free(geometry, world, base):
-            continue
-        w = replace(world, base=base)
-        with geometry.stats.timer("collision_checking"):
-            # exactly the refinement's first check: the approach (hover descent included), densified
-            hit = geometry._movables_on_line(w.with_gripper(arm, "open"), arm, wps[0], [0.0]) - {obj}
-            hit |= _movables_on(geometry, w, arm, list(wps[1]), (obj,))
-            # a rough guess at the transit's sweep: the straight joint-space line to the pre-grasp
-            sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], wps[0][0]), (obj,), gripper=None)
-        out.append(((len(hit), len(sweep)), idx, base, kind, T, wps, xy))
-    out.sort(key=lambda f: (f[0], f[1]))
-    return out
 
 
 HOVER = 0.18  # the pre-grasp is approached from this far above: over the other cylinders' tops
@@ -403,72 +502,6 @@ def _with_hover(geometry, world, arm, T, wps, rng, obj):
 CORRIDOR = 0.15  # m: put-down spots keep this far from the footprint of the target's best approaches
 
 
-def _spot_score(geometry, world, target, x, y):
-    """Larger is better: near the table's edge (few objects between the arm and the spot, and an object
-    there stands in few other approaches), far from the target and clear of other objects, and never
-    in the corridor the arm will reach through for the target (its best grasps, see pick)."""
-    xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
-    edge = min(x - xmin, xmax - x, y - ymin, ymax - y)
-    d_obj = min((math.hypot(x - Q[0, 3], y - Q[1, 3]) for Q in world.objects.values()), default=1.0)
-    Tt = world.objects.get(target)
-    d_t = math.hypot(x - Tt[0, 3], y - Tt[1, 3]) if Tt is not None else 1.0
-    penalty = 0.0
-    for cands in corridors(geometry).values():
-        for rank, (_, xy) in enumerate(cands):
-            if any(math.hypot(x - a, y - b) < CORRIDOR for a, b in xy):
-                penalty = max(penalty, 2.0 if rank == 0 else 0.5)
-    return min(d_obj, 0.25) + 0.5 * min(d_t, 0.6) - 1.5 * edge - penalty
-
-
-def place(problem, step, world, rng, limit: int = 4, tries: int = 80):
-    """A free table spot (far from the target and other objects first), a base pose to reach it, and
-    the lowering / retreat arm paths."""
-    from .generators import LIFT, PRE_GRASP, _line, _putdown, trans
-
-    obj, arm = step.args[0], step.args[1]
-    bp_ref, pd_ref = step.args[3], step.args[4]
-    geometry = problem.geometry
-    if world.holder(obj) != arm:
-        return
-    G = world.held[arm][1]
-    spots = []
-    geometry.sync(world)
-    for x, y, z in _table_spots(geometry, world, obj, rng, tries):
-        spots.append((_spot_score(geometry, world, geometry.layout.target, x, y), x, y, z))
-    spots.sort(key=lambda s: -s[0])
-    found = []
-    for rank, (_, x, y, z) in enumerate(spots):
-        if rank >= 3 * limit and found:
-            break  # past the best spots, only search on while nothing at all was found
-        for _ in range(4 if rank < 3 * limit else 8):
-            base = _base_near(geometry, x, y, rng)
-            if base is None or not _base_free(problem.geometry, world, base):
-                continue
-            P, T = _putdown(G, x, y, z, math.atan2(y - base[1], x - base[0]) + rng.uniform(-0.3, 0.3))
-            w = replace(world, base=base)
-            put = geometry.ik(w, arm, T, rng, attempts=4)
-            if put is None:
-                continue
-            lower = _line(geometry, w, arm, T, lambda d, T=T: trans(0, 0, d) @ T, LIFT, put, rng)
-            back = _line(geometry, w.with_gripper(arm, "open"), arm, T, lambda d, T=T: T @ trans(-d, 0, 0), PRE_GRASP, put,
-                         rng, gripper="open")
-            if lower is None or back is None:
-                continue
-            with geometry.stats.timer("collision_checking"):
-                hit = _movables_on(geometry, w, arm, lower, (), gripper=None)
-                hit |= _movables_on(geometry, w, arm, back, ())
-                sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], lower[-1]), (), gripper=None)
-            found.append(((len(hit), len(sweep)), rank, base, x, y, P, T, lower, back))
-            break
-        if len(found) >= limit or (found and found[-1][0] == (0, 0) and len(found) >= 2):
-            break
-    found.sort(key=lambda f: (f[0], f[1]))
-    for nhit, _, base, x, y, P, T, lower, back in found:
-        yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])),
-                        {bp_ref: list(base), pd_ref: T.tolist(), "tloc": (obj, P), "object_pose": P.tolist()},
-                        f"{obj} at {_fmt((x, y))} from base {_fmt(base)} ({nhit[0]} + {nhit[1]} objects in the way)")
-
-
 def _base_free(geometry, world, base):
     from .generators import _base_free as free
 
@@ -485,7 +518,8 @@ def _table_spots(geometry, world, obj, rng, tries, want=12):
     m = o.size[0] + 0.02
     z = table_top(geometry.layout) + o.height / 2 + REST_GAP
     n = max(tries, 40) * 25
-    pts = np.column_stack([rng.uniform(xmin + m, xmax - m, n), rng.uniform(ymin + m, ymax - m, n)])
+    far = min(xmax - m, base_limits(geometry.layout)[0][1] + 0.95)  # beyond the arm's reach from any base pose
+    pts = np.column_stack([rng.uniform(xmin + m, far, n), rng.uniform(ymin + m, ymax - m, n)])
     others = np.array([Q[:2, 3] for Q in world.objects.values()]).reshape(-1, 2)
     d = np.min(np.linalg.norm(pts[:, None, :] - others[None, :, :], axis=2), axis=1) if len(others) else np.full(n, 9.0)
     out = 0

@@ -1,7 +1,8 @@
 """Registers the PR2 pick-and-place domain and its pose generators."""
 from interlayer import hookimpl
 
-PARAMS = {"scene": "cubby", "goal": "hold", "grasps": ["side"], "target_radius": 0.035, "clutter": 0, "objects": 15}
+PARAMS = {"scene": "cubby", "goal": "hold", "grasps": ["side"], "target_radius": 0.035, "clutter": 0, "objects": 15,
+          "approach": "free"}
 
 
 def make_problem(params, seed):
@@ -65,7 +66,7 @@ def interlayer_register_domains(registry):
     registry.add("pr2", make_problem,
                  "a PR2 picks a cylinder from a cubby whose mouth another cylinder blocks (Fig. 3 actions, both arms); "
                  "scene = \"clutter\": the paper's cluttered table (Clutter-N, objects = N)",
-                 params=PARAMS)
+                 params=PARAMS, drawing="interlayer_pr2.draw")
 
 
 @hookimpl
@@ -75,8 +76,8 @@ def interlayer_register_pose_generators(registry):
     registry.add("pr2:move_base", generators.move_base, "base poses in an annulus around the object or put-down spot")
     registry.add("pr2:pick", generators.pick, "side (and top) grasps with pre-grasp and raise waypoints, by IK")
     registry.add("pr2:place", generators.place, "the put-down spot chosen by move_base and nearby variants, by IK")
-    registry.add("pr2c:pick", clutter.pick, "clutter: base pose + side grasp (move_base folded in), fewest objects in the way first")
-    registry.add("pr2c:place", clutter.place, "clutter: a free table spot far from the target and others + base pose, by IK")
+    registry.add("pr2c:pick", clutter.ClutterSampler, "clutter: base pose + side grasp (move_base folded in), fewest objects in the way first")
+    registry.add("pr2c:place", clutter.ClutterSampler, "clutter: a free table spot far from the target and others + base pose, by IK")
 
 
 @hookimpl

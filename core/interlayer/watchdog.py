@@ -1,0 +1,97 @@
+"""No silent loops: the interface layer's watch over its own progress.
+
+Alg. 1 resets (clears learned facts, reseeds the generators) whenever no partial refinement leads
+to a solvable state. Plugin mistakes make that cycle spin without end: a pose generator that
+yields nothing, a failure kind that no ``learn`` template translates, generators that ignore their
+``rng`` so every epoch repeats the last. ``ProgressWatch`` notices these and raises ``NoProgress``
+with a sentence naming the culprit; the loop ends the run ``unsolvable`` with that reason.
+"""
+from __future__ import annotations
+
+import time
+from collections import Counter, deque
+
+BARREN_LIMIT = 20  # resets in a row that learned nothing, all blamed on the same culprit
+REPEAT_LIMIT = 3  # resets in a row whose epochs tried the same candidates with the same outcomes
+RATE_WINDOW, MAX_RESETS_PER_SECOND = 100, 50.0  # the last RATE_WINDOW resets must take >= 2 s
+MAX_TRACE_EVENTS = 200_000
+
+
+class NoProgress(Exception):
+    """The loop is not making progress; the message names why."""
+
+
+class ProgressWatch:
+    def __init__(self, model, clock=time.perf_counter):
+        self.model, self.clock = model, clock
+        self.barren: list[set] = []  # culprits of each reset in a row that learned nothing
+        self.repeats, self.last_signature = 0, None
+        self.reset_times: deque = deque(maxlen=RATE_WINDOW)
+        self._new_epoch()
+
+    def _new_epoch(self):
+        self.culprits: set[str] = set()
+        self.signature: list = []
+        self.failures: Counter = Counter()
+
+    # -- observations --------------------------------------------------------------------
+    def generator_empty(self, label: str, index: int, step) -> None:
+        self.culprits.add(f"the {label} yielded no candidates for step {index} {step}")
+        self.signature.append((index, "empty"))
+
+    def attempt(self, index: int, step, candidate, outcome) -> None:
+        kind = outcome.failure.kind if outcome.failure else ("ok" if outcome.ok else "failed")
+        self.signature.append((index, candidate.label, repr(candidate.waypoints)[:300], kind))
+        if not outcome.ok:
+            self.failures[(index, str(step), kind)] += 1
+
+    def untranslated(self, failure, step) -> None:
+        """The translators returned no fact at all for this failure."""
+        keys = sorted(self.model.problem.domain.action(step.action).learn)
+        if failure.kind not in keys:
+            self.culprits.add(f"the failure kind '{failure.kind}' of the action '{step.action}' has no translation "
+                              f"(its learn keys: {', '.join(keys) or 'none'}); add a learn template for it or "
+                              f"report a kind it has")
+        else:
+            self.culprits.add(f"the '{failure.kind}' failures of the action '{step.action}' translate to no facts "
+                              f"(objects: {', '.join(failure.objects) or 'none'})")
+
+    def check_trace(self, events: int) -> None:
+        if events > MAX_TRACE_EVENTS:
+            raise NoProgress(f"the trace reached {MAX_TRACE_EVENTS} events without a solution; {self._summary()}")
+
+    # -- the decision at each reset ------------------------------------------------------
+    def reset(self, learned: int, plan) -> None:
+        """Called at every reset (Alg. 1, lines 14-17) with the number of facts learned in the epoch."""
+        now = self.clock()
+        self.reset_times.append(now)
+        signature = (tuple(plan), tuple(self.signature))
+        self.repeats = self.repeats + 1 if signature == self.last_signature else 0
+        self.last_signature = signature
+        if learned:
+            self.barren.clear()
+        else:
+            self.barren.append(set(self.culprits))
+        try:
+            recent = self.barren[-BARREN_LIMIT:]
+            common = set.intersection(*recent) if recent else set()
+            repeating = self.repeats + 1 >= REPEAT_LIMIT
+            if common and (repeating or len(recent) >= BARREN_LIMIT):
+                raise NoProgress(f"no progress in {len(self.barren)} resets in a row: " + "; ".join(sorted(common)))
+            if repeating:
+                raise NoProgress(f"the reset cycle repeats the same state: {REPEAT_LIMIT} epochs in a row tried the same "
+                                 f"candidates with the same outcomes (do the pose generators use the rng they are "
+                                 f"given?); {self._summary()}")
+            if len(self.reset_times) == RATE_WINDOW and now - self.reset_times[0] < RATE_WINDOW / MAX_RESETS_PER_SECOND:
+                raise NoProgress(f"the loop is spinning: {RATE_WINDOW} resets in {now - self.reset_times[0]:.2f} s; "
+                                 f"{self._summary()}")
+        finally:
+            self._new_epoch()
+
+    def _summary(self) -> str:
+        if self.culprits:
+            return "; ".join(sorted(self.culprits))
+        if not self.failures:
+            return "the last epoch made no refinement attempt"
+        (index, step, kind), n = self.failures.most_common(1)[0]
+        return f"the last epoch's most frequent failure: '{kind}' at step {index} {step} ({n} times)"
