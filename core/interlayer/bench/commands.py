@@ -30,7 +30,9 @@ def cmd_bench(args) -> int:
          f"results in {args.db} ('interlayer report {args.db} --out DIR' makes the tables and plots)")
     if args.json:
         print(json.dumps({"suite": suite.name, "db": str(args.db), **summary}))
-    return 1 if summary["interrupted"] else 0
+    from ..cli import EXIT_INTERRUPTED, EXIT_OK
+
+    return EXIT_INTERRUPTED if summary["interrupted"] else EXIT_OK
 
 
 def cmd_report(args) -> int:
