@@ -187,7 +187,8 @@ def test_dask_sweep_records_every_run(dask_db):
                                                        ("planner.task=pyperplan", 0), ("planner.task=pyperplan", 1)]
     assert all(r["status"] == "solved" and r["plan_length"] == 4 and r["peak_memory_mb"] > 0 for r in rows)
     assert all("planner.task=pyperplan" in json.loads(r["overrides"]) for r in rows[2:])
-    assert json.loads(rows[0]["versions"])["interlayer"]
+    versions = json.loads(rows[0]["versions"])
+    assert versions["interlayer"] and versions["python"]
     with sqlite3.connect(dask_db) as con:
         assert con.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
 

@@ -219,11 +219,14 @@ def failures(runs, limit=40) -> list:
 
 def build(runs, rows, image_dir: Path) -> list:
     hosts = sorted({r["host"] for r in runs})
-    versions = next((r["versions"] for r in runs if r["versions"]), {})
+    versions = dict(next((r["versions"] for r in runs if r["versions"]), {}))
+    versions.pop("commit", None)
+    commits = sorted({(r["versions"] or {}).get("commit") for r in runs} - {None})
     dates = sorted(r["finished"] for r in runs)
     blocks = [("p", f"{len(runs)} runs on {', '.join(hosts) or '-'}"
                     + (f", {dates[0][:16]} to {dates[-1][:16]} UTC" if dates else "") + ". "
-                    + ("Versions: " + ", ".join(f"{k} {v}" for k, v in versions.items()) + "." if versions else ""))]
+                    + ("Versions: " + ", ".join(f"{k} {v}" for k, v in versions.items()) + ". " if versions else "")
+                    + (f"Source commit{'s' if len(commits) > 1 else ''}: {', '.join(commits)}." if commits else ""))]
     blocks += table1(runs, rows) + combo_table(runs)
     if histogram_png(runs, image_dir / "histogram.png"):
         blocks += [("h2", "Solution times (the paper's Fig. 7: histogram per row, log-scale y axis)"),

@@ -56,7 +56,26 @@ def versions(host) -> dict:
     for dist, version in host.dists.values():
         if version:
             out.setdefault(dist, version)
+    commit = _git_commit()
+    if commit:
+        out["commit"] = commit
     return out
+
+
+def _git_commit() -> str:
+    """The source checkout's commit (with '+' when it has local changes), or '' outside a git checkout."""
+    import subprocess
+    from pathlib import Path
+
+    here = str(Path(__file__).resolve().parent)
+    try:
+        head = subprocess.run(["git", "-C", here, "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                              timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "-C", here, "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return f"{head}{'+' if dirty else ''}" if head else ""
 
 
 def plan(spec: dict) -> dict:
