@@ -247,6 +247,10 @@ def build_parser() -> argparse.ArgumentParser:
         page.add_argument("-o", "--output", default=default, help=f"the HTML file to write (default {default})")
         page.add_argument("--visualizer", default="meshcat", help="the registered visualizer to use")
         page.set_defaults(func=func, json=False)
+
+    from .bench.commands import add_commands  # bench, report
+
+    add_commands(sub)
     return parser
 
 
