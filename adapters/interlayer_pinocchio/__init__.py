@@ -32,6 +32,12 @@ in rad).  Poses are 4x4 numpy arrays in metres.  Arms are ``"left"``/``"right"``
     ``checker_for(group, q_fixed, ignore=(), movables=True) -> is_valid(vector) -> bool``,
     ``objects_overlap(name, pose, ignore=()) -> set``.
 
+``ArticulatedBody(name, urdf_xml, placement)``   (articulated.py)
+    a fixed-base environment body with 1-DOF joints (a drawer, a door): ``joint_names``, ``lower``,
+    ``upper``, ``link_pose(values, link)``, ``shape_poses(values)``, ``carry(pose, link, v0, v1)``,
+    ``add_to(cw, values, padding)``, ``update(cw, values)``, ``touching(cw, values, objects)``;
+    ``box_link_urdf(name, [(size, xyz), ...])`` writes a URDF link of boxes.
+
 ``solve_ik(robot, arm, target, q_start, rng=None, world=None, attempts=20, tol_pos=1e-3,
 tol_rot=radians(1), ignore=(), movables=True) -> 7-vector | None``   (ik.py)
 
@@ -43,12 +49,13 @@ from __future__ import annotations
 
 import importlib
 
-__all__ = ["PR2", "JointGroup", "TUCKED_ARMS", "CollisionWorld", "WorldObject", "Attachment", "solve_ik"]
+__all__ = ["PR2", "JointGroup", "TUCKED_ARMS", "CollisionWorld", "WorldObject", "Attachment", "solve_ik", "ArticulatedBody", "box_link_urdf"]
 
 _WHERE = {
     "PR2": "robot", "JointGroup": "robot", "TUCKED_ARMS": "robot",
     "CollisionWorld": "world", "WorldObject": "world", "Attachment": "world",
     "solve_ik": "ik",
+    "ArticulatedBody": "articulated", "box_link_urdf": "articulated",
 }
 
 

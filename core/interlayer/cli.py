@@ -103,7 +103,10 @@ def cmd_check(args) -> int:
     host = PluginHost()
     for warning in host.warnings:
         log(f"warning: {warning}")
-    model = api.prepare(args.source, args.set, host).model  # everything 'plan' would check
+    prepared = api.prepare(args.source, args.set, host)  # everything 'plan' would check
+    model = prepared.model
+    describe = getattr(prepared.problem.geometry, "describe", None)  # the domain's own summary of the scene
+    scene = describe() if callable(describe) else None
     refs: dict = {}
     for ref, (sk, _) in model.references.items():
         refs.setdefault(sk, []).append(ref)
@@ -116,10 +119,13 @@ def cmd_check(args) -> int:
         "uniformity_violations": model.uniformity,
         "parameters": model.parameter_roles,
         "task_view": {a.name: [f"{v} - {t}" for v, t in a.parameters] for a in model.actions.values()},
+        **({"scene": scene} if scene else {}),
     }
     if args.json:
         print(json.dumps(report, indent=1))
         return EXIT_OK
+    if scene:
+        print(f"Scene: {scene}")
     print(f"Pose references ({len(model.references)}):")
     for sk, names in refs.items():
         print(f"  {sk}: {' '.join(names)}")
@@ -241,6 +247,10 @@ def build_parser() -> argparse.ArgumentParser:
         page.add_argument("-o", "--output", default=default, help=f"the HTML file to write (default {default})")
         page.add_argument("--visualizer", default="meshcat", help="the registered visualizer to use")
         page.set_defaults(func=func, json=False)
+
+    from .bench.commands import add_commands  # bench, report
+
+    add_commands(sub)
     return parser
 
 

@@ -14,7 +14,8 @@ Domains
     The domain's ``drawing`` (``Drawing``) lets visualizers draw it.
 Pose generators
     ``fn(problem, step, world, rng) -> iterable of Candidate``; raise ``Infeasible`` when a
-    reference can never be instantiated.
+    reference can never be instantiated. A generator that needs state between calls subclasses
+    ``EpochState`` (registered as the class): the loop makes a fresh, reseeded instance per epoch.
 Motion planners
     subclass ``MotionPlanner`` and implement ``_plan(space, start, goal, is_valid, time_limit)``;
     domains describe each query as a ``MotionQuery`` over a ``ConfigSpace``.
@@ -37,7 +38,7 @@ from .faults import PluginFault
 from .motion import ConfigSpace, InterpolatingPlanner, MotionPlan, MotionPlanner, MotionQuery, segment_valid
 from .planning import TaskPlanner, TaskPlanResult
 from .plugins import Registry
-from .refine import Candidate, Failure, Geometry, Infeasible, StepOutcome
+from .refine import Candidate, EpochState, Failure, Geometry, Infeasible, StepOutcome
 
 
 class Drawing(Protocol):
@@ -57,7 +58,7 @@ class Drawing(Protocol):
 __all__ = [
     "hookimpl", "Registry", "UserError", "PluginFault",
     "DomainSpec", "ActionSpec", "Skolem", "Problem", "GroundStep", "TaskModel",
-    "Geometry", "Candidate", "StepOutcome", "Failure", "Infeasible", "Drawing",
+    "Geometry", "Candidate", "StepOutcome", "Failure", "Infeasible", "EpochState", "Drawing",
     "ConfigSpace", "MotionQuery", "MotionPlan", "MotionPlanner", "InterpolatingPlanner", "segment_valid",
     "TaskPlanner", "TaskPlanResult", "translate_by_templates",
 ]

@@ -356,7 +356,7 @@ class ClutterSampler(EpochState):
         misses = self.misses.get(key, 0)
         rng = self.rng_for(*key, misses)  # a function of the epoch and the question only
         x, y = P[0, 3], P[1, 3]
-        kinds = _problem_grasps(problem)
+        kinds = _problem_grasps(problem, obj)
         target = obj == geometry.layout.target
         want = 12 if target else 6
         n_bases = 3 * tries if target else tries

@@ -33,6 +33,8 @@ COLORS = {
     "movable": [(0.30, 0.50, 0.85, 1.0), (0.35, 0.65, 0.55, 1.0), (0.55, 0.45, 0.80, 1.0), (0.40, 0.60, 0.90, 1.0)],
     "region": (0.20, 0.70, 0.30, 0.45),
     "robot": (0.78, 0.80, 0.84, 1.0),
+    "body": (0.62, 0.47, 0.33, 0.45),  # articulated bodies' fixed parts: see-through (a cabinet's inside)
+    "body_moving": (0.78, 0.62, 0.42, 1.0),
 }
 TABLE_TOP_DEFAULT = 0.72
 VIEW_DIRECTION = (-0.45, -1.0, 1.0)
@@ -121,6 +123,9 @@ class _State:
             except (KeyError, TypeError, ValueError):
                 pass
         self.opening = {}  # arm -> finger angle override while a gripper moves
+        # articulated bodies (geometry.bodies): joint values, and the objects resting on their links
+        self.joints = {b: tuple(float(x) for x in v) for b, v in (world.get("joints") or {}).items()}
+        self.riders = dict(getattr(_initial_world(geometry), "riders", {}) or {})
 
     def q(self, base=None):
         r = self.robot
@@ -132,10 +137,13 @@ class _State:
                 pass
         for arm in ("left", "right"):
             try:
+                g = self.grippers.get(arm)
                 if arm in self.opening:
                     q = r.group(f"{arm}_gripper").set(q, [self.opening[arm]])
-                elif self.grippers.get(arm) == "open":
+                elif g == "open":
                     q = r.open_gripper(q, arm)
+                elif isinstance(g, (int, float)):  # closed around a handle
+                    q = r.set_gripper_opening(q, arm, float(g))
                 elif arm in self.held:
                     q = r.set_gripper_opening(q, arm, max(0.0, self._width(arm)))
                 else:
@@ -164,6 +172,60 @@ class _State:
                 except Exception:
                     pass
         return out
+
+
+def _initial_world(geometry):
+    fn = getattr(geometry, "initial_world", None)
+    try:
+        return fn() if fn is not None else None
+    except Exception:
+        return None
+
+
+def _bodies(geometry) -> dict:
+    return dict(getattr(geometry, "bodies", None) or {})
+
+
+def _draw_bodies(geometry, scene, state, names) -> None:
+    """Articulated bodies: one box / cylinder per collision element, below ``bodies/<body>/<link>``."""
+    for name, body in _bodies(geometry).items():
+        values = state.joints.get(name, tuple(body.zero()))
+        poses = body.shape_poses(values)
+        for sh in body.shapes:
+            color = COLORS["body_moving"] if sh.joint > 0 else COLORS["body"]
+            if sh.link == "handle":
+                color = COLORS["fixed"]
+            sn = f"bodies/{sh.name}"
+            if sh.kind == "box":
+                scene.box(sn, sh.size, None, color)
+            else:
+                scene.cylinder(sn, sh.size[0], sh.size[1], None, color)
+            scene.set_pose(sn, poses[sh.name])
+        names[name] = f"bodies/{name}"
+
+
+def _body_poses(geometry, state) -> dict:
+    """Scene poses of the moving elements of every articulated body at the state's joint values."""
+    out = {}
+    for name, body in _bodies(geometry).items():
+        values = state.joints.get(name)
+        if values is None:
+            continue
+        poses = body.shape_poses(values)
+        out.update({f"bodies/{sh.name}": poses[sh.name] for sh in body.moving_shapes()})
+    return out
+
+
+def _move_joints(geometry, state, body, values) -> None:
+    """Set a body's joints; objects resting on its links move along."""
+    b = _bodies(geometry).get(body)
+    old = state.joints.get(body)
+    values = tuple(float(v) for v in values)
+    if b is not None and old is not None:
+        for obj, (name, link) in state.riders.items():
+            if name == body and obj in state.objects:
+                state.objects[obj] = b.carry(state.objects[obj], link, old, values)
+    state.joints[body] = values
 
 
 def _robot_handle(geometry, scene):
@@ -237,6 +299,11 @@ def draw_scene(geometry, scene, world=None) -> dict:
         if T is not None:
             scene.set_pose(sn, T)
         names[name] = sn
+    state = _State(geometry, world)
+    try:
+        _draw_bodies(geometry, scene, state, names)
+    except Exception:  # a body that cannot be drawn must not kill the page
+        pass
     regions = getattr(getattr(geometry, "layout", None), "regions", None) or {}
     for loc, box in regions.items():
         if loc == "table":
@@ -251,7 +318,6 @@ def draw_scene(geometry, scene, world=None) -> dict:
                                COLORS["region"])
         scene.label(f"regions/{loc}/label", loc, [cx, cy, top + 0.01], height=0.035)
 
-    state = _State(geometry, world)
     q = state.q()
     poses = state.object_poses(q)
     others = 0
@@ -326,6 +392,7 @@ def animation_frames(geometry, scene, trajectory) -> list:
     def frame(step):
         f = _robot_poses(handle, state)
         f.update(state.object_poses())
+        f.update(_body_poses(geometry, state))
         f["@step"] = step
         return f
 
@@ -355,26 +422,42 @@ def animation_frames(geometry, scene, trajectory) -> list:
                             order = [names.index(n) for n in dof] if names and set(dof) <= set(names) else None
                         except Exception:
                             order = None
+                        body = seg.get("body")
+                        extra = [names.index(n) for n in names if n.startswith(f"{body}/")] if body else []
+                        joints = [p[extra] for p in path] if extra else None
                         if order is not None:
                             path = [p[order] for p in path]
                         cur = np.asarray(state.arms.get(arm, path[0]), float)
-                        timed = _in_real_time(seg["points"], path, fps)
-                        for v in timed if timed is not None else (
-                                v for a, b in zip([cur] + path[:-1], path) for v in _densify_arm(a, b)):
-                            state.arms[arm] = tuple(float(x) for x in v)
-                            frames.append(frame(i))
+                        timed = None if joints else _in_real_time(seg["points"], path, fps)
+                        if timed is not None:
+                            for v in timed:
+                                state.arms[arm] = tuple(float(x) for x in v)
+                                frames.append(frame(i))
+                            continue
+                        jcur = joints[0] if joints else None
+                        for k, (a, b) in enumerate(zip([cur] + path[:-1], path)):
+                            vs = _densify_arm(a, b)
+                            for m, v in enumerate(vs):
+                                state.arms[arm] = tuple(float(x) for x in v)
+                                if joints:  # a pull: the body's joints move with the arm
+                                    j0 = jcur if k == 0 else joints[k - 1]
+                                    _move_joints(geometry, state, body, j0 + (joints[k] - j0) * (m + 1) / len(vs))
+                                frames.append(frame(i))
                 elif kind == "gripper":
                     arm, cmd = seg.get("arm"), seg.get("command")
                     g = robot.group(f"{arm}_gripper")
                     a0 = float(g.get(state.q())[0])
-                    a1 = float(g.upper[0] if cmd == "open" else g.lower[0])
+                    width = seg.get("width")
+                    a1 = float(g.upper[0] if cmd == "open" else g.lower[0] if width is None
+                               else g.get(robot.set_gripper_opening(state.q(), arm, float(width)))[0])
                     for k in range(1, GRIPPER_FRAMES + 1):
                         state.opening[arm] = a0 + (a1 - a0) * k / GRIPPER_FRAMES
                         frames.append(frame(i))
                     state.opening.pop(arm, None)
-                    state.grippers[arm] = "open" if cmd == "open" else "closed"
+                    state.grippers[arm] = "open" if cmd == "open" else "closed" if width is None else float(width)
                 elif kind == "grasp":
                     arm, obj = seg.get("arm"), seg.get("object")
+                    state.riders.pop(obj, None)
                     q = state.q()
                     G = seg.get("grasp")
                     if G is not None:

@@ -26,8 +26,10 @@ GRASP_CLEARANCE = 0.001  # the gripper must open at least this much wider than t
 DOWN = np.array([[0, 0, 1, 0], [0, 1, 0, 0], [-1, 0, 0, 0], [0, 0, 0, 1.0]])  # tool x pointing down
 
 
-def _problem_grasps(problem):
-    return problem.geometry.layout.grasps
+def _problem_grasps(problem, obj=None):
+    """Grasp kinds allowed for obj: the layout's, unless its extra "grasps_of" names some for obj."""
+    layout = problem.geometry.layout
+    return tuple(layout.extra.get("grasps_of", {}).get(obj, layout.grasps))
 
 
 def grasp_poses(geometry, name, P, heading, kinds, rng, n_side=5):
@@ -68,7 +70,7 @@ def check_graspable(problem, name):
     """Raise Infeasible when no grasp of the allowed kinds fits the gripper and the goal needs the object."""
     geometry = problem.geometry
     o = geometry.specs[name]
-    kinds = _problem_grasps(problem)
+    kinds = _problem_grasps(problem, name)
     rng = np.random.default_rng(0)
     found = any(grasp_poses(geometry, name, pose4(*o.pose), h, kinds, rng, n_side=1)
                 for h in np.linspace(-math.pi, math.pi, 8, endpoint=False))
@@ -122,7 +124,8 @@ def _bearing(base, x, y):
     return math.atan2(y - base[1], x - base[0])
 
 
-def pick(problem, step, world, rng, limit: int = 6):
+def pick(problem, step, world, rng, limit: int = 6, grasps=None):
+    """``grasps(world, heading, rng) -> [(kind, tool pose)]`` replaces grasp_poses (a domain's own grasps)."""
     obj, arm = step.args[0], step.args[1]
     geometry = problem.geometry
     if world.holder(obj) is not None:
@@ -136,7 +139,8 @@ def pick(problem, step, world, rng, limit: int = 6):
         kind, T, wps = planned
         n += 1
         yield Candidate(wps, {step.args[3]: T.tolist()}, f"{kind} grasp, tool yaw {math.degrees(_yaw(T)):.0f} deg")
-    for kind, T in grasp_poses(geometry, obj, P, heading, _problem_grasps(problem), rng):
+    offered = grasps(world, heading, rng) if grasps else grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng)
+    for kind, T in offered:
         wps = _waypoints(geometry, world, arm, T, kind, rng, ignore=(obj,))
         if wps is None:
             continue
@@ -153,7 +157,7 @@ def _yaw(T):
     return math.atan2(x[1], x[0])
 
 
-def move_base(problem, step, world, rng, limit: int = 6, tries: int = 150):
+def move_base(problem, step, world, rng, limit: int = 6, tries: int = 150, grasps=None):
     to = step.args[0]
     geometry = problem.geometry
     info = geometry.refs.get(to)
@@ -162,7 +166,7 @@ def move_base(problem, step, world, rng, limit: int = 6, tries: int = 150):
         return
     skolem, args = info
     if skolem == "bpfg":
-        yield from _bases_for_grasp(problem, world, args[0], args[1], to, rng, limit, tries)
+        yield from _bases_for_grasp(problem, world, args[0], args[1], to, rng, limit, tries, grasps)
     else:
         yield from _bases_for_putdown(problem, world, args[0], args[1], args[2], to, rng, limit, tries)
 
@@ -182,7 +186,7 @@ def _annulus(rng, x, y, rmin=0.45, rmax=0.80):
     return (float(bx), float(by), float(wrap(math.atan2(y - by, x - bx) + rng.uniform(-0.3, 0.3))))
 
 
-def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries):
+def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=None):
     from dataclasses import replace
 
     geometry = problem.geometry
@@ -191,7 +195,7 @@ def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries):
     check_graspable(problem, obj)
     P = world.objects[obj]
     x, y = P[0, 3], P[1, 3]
-    kinds = _problem_grasps(problem)
+    kinds = _problem_grasps(problem, obj)
     candidates = [tuple(world.base)] + [_annulus(rng, x, y) for _ in range(tries)]
     n = 0
     for i, base in enumerate(candidates):
@@ -199,7 +203,7 @@ def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries):
             continue
         w = replace(world, base=base)
         heading = _bearing(base, x, y)
-        for kind, T in grasp_poses(geometry, obj, P, heading, kinds, rng, n_side=2):
+        for kind, T in (grasps(w, heading, rng) if grasps else grasp_poses(geometry, obj, P, heading, kinds, rng, n_side=2)):
             wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,))
             if wps is not None:
                 n += 1

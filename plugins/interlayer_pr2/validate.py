@@ -15,6 +15,7 @@ FINE_ARM, FINE_BASE = RES_ARM / 5, RES_BASE / 5
 POS_TOL, ROT_TOL = 2e-3, math.radians(2)
 START_TOL = 1e-6
 SPEED_TOL = 0.02  # relative slack on velocity and acceleration limits (discretisation of the timing)
+GRIP_TOL = 0.006  # m: between IK waypoints a pull's tool strays a little from the handle
 
 
 def _pose_close(A, B, pos=POS_TOL, rot=ROT_TOL):
@@ -37,7 +38,11 @@ def validate_trajectory(geometry, plan, trajectory) -> list[str]:
         for k, seg in enumerate(data.get("segments", [])):
             kind = seg.get("kind")
             at = f"{where} segment {k} ({kind})"
-            if "points" in seg:
+            if "points" in seg and seg.get("body"):
+                world, why = _check_pull(geometry, world, seg, at)
+                if why:
+                    return errors + [why]
+            elif "points" in seg:
                 world, why = _check_motion(geometry, world, seg, at)
                 if why:
                     return errors + [why]
@@ -48,10 +53,20 @@ def validate_trajectory(geometry, plan, trajectory) -> list[str]:
                 else:
                     if arm in world.held:
                         return errors + [f"{at}: closes the {arm} gripper while it holds {world.held[arm][0]}"]
-                    world = world.with_gripper(arm, "closed")
+                    width = seg.get("width", "closed")  # a width: closed around something that is no object (a handle)
+                    if width != "closed" and not (isinstance(width, (int, float)) and 0 < width < robot.max_gripper_opening):
+                        return errors + [f"{at}: gripper width {width!r} is not a number of metres the gripper can close to"]
+                    world = world.with_gripper(arm, width)
                 if geometry.in_collision(world):
                     pairs = geometry.cw.collision_pairs(geometry.sync(world))
                     return errors + [f"{at}: the {arm} gripper collides after '{seg['command']}': {_pairs(pairs)}"]
+            elif kind == "articulation":
+                body = seg.get("body")
+                if body not in world.joints:
+                    return errors + [f"{at}: unknown articulated body {body!r}"]
+                if not np.allclose(seg.get("positions", []), world.joints[body], atol=1e-6):
+                    return errors + [f"{at}: claims {body} at {seg.get('positions')} but the motions left it at "
+                                     f"{list(world.joints[body])}"]
             elif kind == "grasp":
                 arm, obj = seg["arm"], seg["object"]
                 if arm in world.held:
@@ -75,7 +90,8 @@ def validate_trajectory(geometry, plan, trajectory) -> list[str]:
                     return errors + [f"{at}: {obj} is {width:.3f} m across the fingers, wider than the gripper opens"]
                 objects = {n: v for n, v in world.objects.items() if n != obj}
                 world = replace(world, objects=objects, held={**world.held, arm: (obj, G)},
-                                grippers={**world.grippers, arm: "closed"})
+                                grippers={**world.grippers, arm: "closed"},
+                                riders={k: v for k, v in world.riders.items() if k != obj})
             elif kind == "release":
                 arm, obj = seg["arm"], seg["object"]
                 if world.held.get(arm, (None,))[0] != obj:
@@ -196,6 +212,53 @@ def _check_timing(geometry, space, group_name, names, points, path, at):
                 return (f"{at}: {names[j]} changes velocity at {abs(v[k + 1][j] - v[k][j]) / dt:.3f} per s^2 between "
                         f"points {k} and {k + 1} (limit {amax[j]:.3f})")
     return None
+
+
+def _check_pull(geometry, world, seg, at):
+    """An arm dragging a link of an articulated body: the arm's joints and the body's move together, the
+    gripper (closed around the link's handle) keeps its pose on the link, and nothing collides: the
+    robot, the body's moving elements and the objects riding on them, at every fine step."""
+    robot = geometry.robot
+    body = seg["body"]
+    b = geometry.bodies.get(body)
+    group_name = seg.get("group", "")
+    if b is None or body not in world.joints:
+        return world, f"{at}: unknown articulated body {body!r}"
+    if group_name not in ("left_arm", "right_arm"):
+        return world, f"{at}: a pull must move an arm, not {group_name!r}"
+    arm = group_name.split("_")[0]
+    names = list(robot.group(group_name).dof_names) + [f"{body}/{j}" for j in b.joint_names]
+    if list(seg.get("joint_names", [])) != names:
+        return world, f"{at}: joint names {seg.get('joint_names')} are not {names}"
+    if isinstance(world.grippers[arm], str) or arm in world.held:
+        return world, f"{at}: the {arm} gripper pulls {body} while {world.grippers[arm]} (it must be closed on the handle)"
+    path = [np.asarray(p["positions"], float) for p in seg.get("points", [])]
+    if not path or any(len(p) != len(names) for p in path):
+        return world, f"{at}: empty, or a point has the wrong number of positions"
+    n = len(names) - len(b.joint_names)
+    current = np.concatenate([np.asarray(world.arms[arm], float), np.asarray(world.joints[body], float)])
+    if np.max(np.abs(path[0] - current)) > START_TOL:
+        return world, f"{at}: starts at {np.round(path[0], 3).tolist()} but the arm and {body} are at {np.round(current, 3).tolist()}"
+    for p in path:
+        if not robot.group(group_name).within_bounds(p[:n]) or np.any(p[n:] < b.lower - 1e-9) or np.any(p[n:] > b.upper + 1e-9):
+            return world, f"{at}: joint limit violated at {np.round(p, 3).tolist()}"
+    link = seg.get("link")
+    grip = None
+    last = world
+    for w, v, values in geometry.pull_states(world, arm, body, path, fine=5):
+        q = geometry.config(w)
+        link_T_tool = np.linalg.inv(b.link_pose(values, link)) @ robot.tool_pose(q, arm)
+        if grip is None:
+            grip = link_T_tool
+        elif not _pose_close(grip, link_T_tool, pos=GRIP_TOL, rot=math.radians(3)):
+            return world, (f"{at}: the gripper slips on {body}'s {link} by "
+                           f"{np.linalg.norm(grip[:3, 3] - link_T_tool[:3, 3]):.3f} m at {body} {np.round(values, 3).tolist()}")
+        hit, fixed = geometry.pull_hits(w, body)
+        if hit or fixed:
+            what = ", ".join(sorted(hit)) or _pairs(geometry.cw.collision_pairs(geometry.sync(w), movables=False))
+            return world, f"{at}: collision with {what} at {body} {np.round(values, 3).tolist()}"
+        last = w
+    return last, None
 
 
 def _check_goal(geometry, world) -> list[str]:

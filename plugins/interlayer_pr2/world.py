@@ -37,6 +37,7 @@ LIFT = 0.05  # raise after grasping / height above the put-down spot
 TIMING = {"arm_acceleration": 1.5,  # rad/s^2, every arm joint
           "base_velocity": [0.5, 0.5, 1.0],  # m/s, m/s, rad/s (x, y, theta; the URDF gives none)
           "base_acceleration": [0.5, 0.5, 1.0]}  # m/s^2, m/s^2, rad/s^2
+FOLLOWS = 1e3  # the velocity / acceleration "limit" of a joint driven by the hand (a drawer's slide)
 # First IK seed for reaching forward at table height (elbow up, measured typical solutions)
 REACH_SEED = {"left": (-0.4, -0.25, 3.3, -1.53, 2.75, -1.2, 0.0), "right": (0.4, -0.25, -3.3, -1.53, -2.75, -1.2, 0.0)}
 # Carry postures (tool position in the base frame, yaw away from the body): tried in order.
@@ -72,6 +73,10 @@ class World:
     # what the last move_base chose its base pose for: object -> put-down pose (4x4), or
     # ("grasp", object, arm) -> (kind, tool pose, waypoints) of a grasp IK found from that base
     tloc: dict = field(hash=False, default_factory=dict)
+    # articulated environment bodies: body -> joint values; objects resting on their links move with
+    # them: object -> (body, link)
+    joints: dict = field(hash=False, default_factory=dict)
+    riders: dict = field(hash=False, default_factory=dict)
 
     def holder(self, name):
         return next((a for a, (o, _) in self.held.items() if o == name), None)
@@ -85,7 +90,8 @@ class World:
     def to_json(self) -> dict:
         return {"base": list(self.base), "arms": {a: list(v) for a, v in self.arms.items()},
                 "grippers": dict(self.grippers), "objects": {k: np.asarray(v).tolist() for k, v in self.objects.items()},
-                "held": {a: {"object": o, "grasp": np.asarray(g).tolist()} for a, (o, g) in self.held.items()}}
+                "held": {a: {"object": o, "grasp": np.asarray(g).tolist()} for a, (o, g) in self.held.items()},
+                **({"joints": {b: list(v) for b, v in self.joints.items()}} if self.joints else {})}
 
 
 class PR2Geometry:
@@ -102,9 +108,10 @@ class PR2Geometry:
             T = pose4(*o.pose)
             if o.shape == "box":
                 size = o.size
-                if not o.movable and padding:  # fixed obstacles grow by `padding` (the table not upwards:
-                    # objects rest on it and are put down onto it)
-                    size = (size[0] + 2 * padding, size[1] + 2 * padding, size[2] + (2 * padding if o.name != "table" else 0))
+                if not o.movable and padding:  # fixed obstacles grow by `padding` (supports not upwards:
+                    # objects rest on them and are put down onto them)
+                    up = 0 if o.name in layout.extra.get("supports", ("table",)) else 2 * padding
+                    size = (size[0] + 2 * padding, size[1] + 2 * padding, size[2] + up)
                 self.cw.add_box(o.name, size, T, movable=o.movable)
             else:
                 self.cw.add_cylinder(o.name, o.size[0], o.size[1], T, movable=o.movable)
@@ -114,6 +121,8 @@ class PR2Geometry:
         self.cartesian = None  # planner.cartesian, set by the run: the approach and retreat lines' planner
         self.stats = Stats()
         self.refs = {}  # reference name -> (skolem, args): filled by make_problem
+        self.bodies = {}  # articulated environment bodies (interlayer_pinocchio.ArticulatedBody): add_body
+        self._initial_joints, self._initial_riders = {}, {}
         self._synced = None
         lo, hi = base_limits(layout)
         self.base_space = ConfigSpace("se2", (lo[0], hi[0], -math.pi), (lo[1], hi[1], math.pi), (False, False, True), RES_BASE)
@@ -131,7 +140,34 @@ class PR2Geometry:
         from interlayer_pinocchio import TUCKED_ARMS
 
         return World(tuple(self.layout.base), {a: tuple(TUCKED_ARMS[a]) for a in ARMS}, {a: "closed" for a in ARMS},
-                     {o.name: pose4(*o.pose) for o in self.layout.objects}, {})
+                     {o.name: pose4(*o.pose) for o in self.layout.objects}, {},
+                     joints=dict(self._initial_joints), riders=dict(self._initial_riders))
+
+    def add_body(self, body, values, riders=(), exact_links=()) -> None:
+        """Add an articulated body at joint ``values``; ``riders`` are (object, link) pairs of objects
+        resting on its links. Planning pads its elements like fixed obstacles, except ``exact_links``
+        (a handle the gripper closes around)."""
+        self.bodies[body.name] = body
+        values = tuple(float(v) for v in body.check(values))
+        self._initial_joints[body.name] = values
+        for obj, link in riders:
+            self._initial_riders[obj] = (body.name, link)
+        pad = 0.0 if not self.padding else self.padding
+        exact = [s for s in body.shapes if s.link in exact_links]
+        body.add_to(self.cw, values, padding=pad, skip=[s.name for s in exact])
+        body.add_to(self.cw, values, only=[s.name for s in exact])
+        self._synced = None
+
+    def with_joints(self, world: World, name, values) -> World:
+        """``world`` with body ``name`` at joint ``values``; resting objects on its links move along."""
+        body = self.bodies[name]
+        old = world.joints[name]
+        values = tuple(float(v) for v in values)
+        objects = dict(world.objects)
+        for obj, (b, link) in world.riders.items():
+            if b == name and obj in objects:
+                objects[obj] = body.carry(objects[obj], link, old, values)
+        return replace(world, joints={**world.joints, name: values}, objects=objects)
 
     def snapshot(self, world: World) -> dict:
         return world.to_json()
@@ -143,6 +179,8 @@ class PR2Geometry:
             q = r.set(q, f"{arm}_arm", world.arms[arm])
             if world.grippers[arm] == "open":
                 q = r.open_gripper(q, arm)
+            elif not isinstance(world.grippers[arm], str):  # closed around something that is no object (a handle)
+                q = r.set_gripper_opening(q, arm, float(world.grippers[arm]))
             elif arm in world.held:
                 q = r.set_gripper_opening(q, arm, max(0.0, self.grasp_width(world.held[arm][0], world.held[arm][1])))
             else:
@@ -170,6 +208,9 @@ class PR2Geometry:
         if world is self._synced:
             return q
         last = self._synced
+        if world.joints is not (last.joints if last is not None else None):
+            for name, values in world.joints.items():
+                self.bodies[name].update(self.cw, values)
         if last is not None and world.objects is last.objects and world.held is last.held:
             # the same resting objects and grasps (World.with_arm / with_gripper / replace(base=...)
             # share these dicts): nothing in the collision world changes
@@ -405,6 +446,9 @@ class PR2Geometry:
             for p in raw[1:]:
                 path.append(path[-1] + space.difference(path[-1], p))
         vmax, amax = self.limits(group)
+        extra = len(path[0]) - len(vmax)
+        if extra > 0:  # a pull: the articulated body's joints follow the hand; the arm's limits bind
+            vmax, amax = np.append(vmax, [FOLLOWS] * extra), np.append(amax, [FOLLOWS] * extra)
         with self.stats.timer("timing"):
             points = time_parameterize(path, vmax, amax, step=space.resolution)
         if group == "base":
@@ -465,7 +509,8 @@ class PR2Geometry:
         q = self.sync(w)
         G = np.linalg.inv(self.robot.tool_pose(q, arm)) @ w.objects[obj]
         objects = {k: v for k, v in w.objects.items() if k != obj}
-        w = replace(w, objects=objects, held={**w.held, arm: (obj, G)}, grippers={**w.grippers, arm: "closed"})
+        w = replace(w, objects=objects, held={**w.held, arm: (obj, G)}, grippers={**w.grippers, arm: "closed"},
+                    riders={k: v for k, v in w.riders.items() if k != obj})
         segs.append({"kind": "grasp", "arm": arm, "object": obj, "grasp": G.tolist()})
         res = self._line(w, arm, (grasp, *lift), "raise", segs, acc)
         if not res.ok:
@@ -529,6 +574,74 @@ class PR2Geometry:
             return _failure(res, "place tuck")
         return StepOutcome(True, w.with_arm(arm, TUCKED_ARMS[arm]), segs)
 
+    # -- articulated bodies ------------------------------------------------------------------------
+    def pull_states(self, world, arm, body, path, fine=1):
+        """(world, arm vector, joint values) along a pull: ``path`` holds arm vectors followed by the
+        body's joint values, interpolated together (steps of RES_ARM / RES_BASE, divided by ``fine``)."""
+        n = len(self.robot.group(f"{arm}_arm").dof_names)
+        space = self.arm_space[arm]
+        for k, (a, b) in enumerate(zip(path, path[1:])):
+            a, b = np.asarray(a, float), np.asarray(b, float)
+            steps = max(1, math.ceil(max(space.distance(a[:n], b[:n]) / RES_ARM,
+                                         float(np.max(np.abs(b[n:] - a[n:]))) / RES_BASE) * fine))
+            for i in range(0 if k == 0 else 1, steps + 1):
+                p = a + (b - a) * (i / steps)
+                yield self.with_joints(world, body, p[n:]).with_arm(arm, p[:n]), p[:n], p[n:]
+
+    def pull_hits(self, world, body, ignore=(), robot=True) -> tuple[set, bool]:
+        """(movables in the way, whether something fixed is) at ``world``: the robot and held objects
+        (unless ``robot`` is False), the body's moving elements and the objects riding on them, against
+        everything else."""
+        q = self.sync(world)
+        b = self.bodies[body]
+        riders = {o for o, (name, _) in world.riders.items() if name == body}
+        held = {o for o, _ in world.held.values()}
+        others = [o for o in world.objects if o not in riders and o not in ignore]
+        hit, fixed = set(), False
+        with self.stats.timer("collision_checking"):
+            if robot:
+                hit = self.cw.colliding_movables(q) - held - set(ignore)
+                fixed = self.cw.in_collision(q, movables=False)
+            hit |= b.touching(self.cw, world.joints[body], others)
+            for o in riders & world.objects.keys():
+                hit |= self.cw.objects_overlap(o, world.objects[o]) & set(others)
+        return hit, fixed
+
+    def sweep_blockers(self, world, body, values) -> set:
+        """Movables that the body's moving elements (and what rides on them) run into when its joints go
+        straight from their values in ``world`` to ``values`` (checked every RES_BASE): whatever the arm
+        does, such a pull is blocked, so check this first (cheap)."""
+        a, b = np.asarray(world.joints[body], float), np.asarray(values, float)
+        n = max(1, math.ceil(float(np.max(np.abs(b - a))) / RES_BASE))
+        for k in range(1, n + 1):
+            hit, _ = self.pull_hits(self.with_joints(world, body, a + (b - a) * k / n), body, robot=False)
+            if hit:
+                return hit
+        return set()
+
+    def pull(self, step, world, arm, body, link, path, segs, kind="pull", fine=1) -> StepOutcome:
+        """Drag ``link`` of ``body`` with the gripper along ``path`` (arm vector + joint values per point;
+        see pull_states), checked at every state; appends the segment (joint_names: the arm's joints,
+        then "<body>/<joint>")."""
+        last = world
+        for w, _, _ in self.pull_states(world, arm, body, path, fine):
+            hit, fixed = self.pull_hits(w, body)
+            if hit:
+                return StepOutcome(False, failure=Failure("obstruction", tuple(sorted(hit)),
+                                                          f"{kind}: the arm or {body} runs into " + ", ".join(sorted(hit))))
+            if fixed:
+                return StepOutcome(False, failure=Failure("unreachable", (), f"{kind}: collides with fixed obstacles"))
+            last = w
+        b = self.bodies[body]
+        names = list(self.robot.group(f"{arm}_arm").dof_names) + [f"{body}/{j}" for j in b.joint_names]
+        seg = self._segment(kind, f"{arm}_arm", [np.asarray(p, float)[:7] for p in path], _holding(world))
+        seg["joint_names"] = names
+        for pt, p in zip(seg["points"], path):
+            pt["positions"] = [float(v) for v in p]
+        seg.update(body=body, link=link)
+        segs.append(seg)
+        return StepOutcome(True, last, segs)
+
     def _stuck(self, w, what, exclude=None):
         q = self.sync(w)
         movables = self.cw.colliding_movables(q) - {o for o, _ in w.held.values()} - {exclude}
@@ -549,7 +662,7 @@ class PR2Geometry:
     def validate(self, plan, trajectory: dict) -> list[str]:
         from .validate import validate_trajectory
 
-        return validate_trajectory(PR2Geometry(self.layout, padding=0.0), plan, trajectory)
+        return validate_trajectory(type(self)(self.layout, padding=0.0), plan, trajectory)
 
 
 def _holding(world):

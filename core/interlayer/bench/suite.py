@@ -1,0 +1,150 @@
+"""Benchmark suites: rows (a config + overrides + seeds) crossed with planner combinations.
+
+A suite file (TOML)::
+
+    name = "mine"
+    seeds = "0-9"                 # every row's default; a row may set its own
+    time_limit = 120              # seconds per run (planner.time_limit)
+    combo = ["planner.task=ff,fast-downward"]   # optional: each key's values are crossed
+    [quick]                       # what --quick uses
+    seeds = "0-1"
+    time_limit = 30
+
+    [[rows]]
+    name = "Gripper-2D k=5"
+    config = "../examples/gripper2d.toml"      # relative to the suite file
+    set = ["problem.obstructions=5"]
+    paper = { solved = 100, mean_time = 32 }   # optional published numbers (percent, seconds)
+
+Configs and overrides are all the core knows about a row: the domain comes from the config.
+"""
+from __future__ import annotations
+
+import itertools
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import UserError
+
+SUITES_DIR = Path(__file__).resolve().parents[3] / "benchmarks"  # the source checkout's benchmarks/
+QUICK = {"seeds": "0-1", "time_limit": 60.0}
+
+
+@dataclass
+class Row:
+    name: str
+    config: str  # absolute path
+    overrides: list
+    seeds: list
+    paper: dict = field(default_factory=dict)
+    skipped: str = ""  # why the row cannot run on this machine, or ''
+
+
+@dataclass
+class Suite:
+    name: str
+    path: str
+    rows: list
+    combos: list  # [(label, [overrides])]
+    time_limit: float
+
+
+def parse_seeds(text) -> list[int]:
+    """'0-9', '0,3,5-7', 7 or [1, 2] -> a sorted list of seeds."""
+    if isinstance(text, int):
+        return [text]
+    if isinstance(text, list):
+        return sorted({int(s) for s in text})
+    out = set()
+    try:
+        for part in str(text).split(","):
+            a, _, b = part.strip().partition("-")
+            out.update(range(int(a), int(b) + 1) if b else [int(a)])
+    except ValueError:
+        raise UserError(f"Cannot read the seeds '{text}'; write them like 0-9 or 0,3,5-7.") from None
+    if not out:
+        raise UserError(f"The seeds '{text}' name no seed; write them like 0-9 or 0,3,5-7.")
+    return sorted(out)
+
+
+def parse_combos(specs) -> list[tuple[str, list]]:
+    """['planner.task=ff,fast-downward', 'planner.motion=ompl:PRM,ompl:RRTConnect'] -> their cross product."""
+    axes = []
+    for spec in specs:
+        key, eq, values = spec.partition("=")
+        if not eq or not key.strip() or not values.strip():
+            raise UserError(f"The combination '{spec}' is not KEY=VALUE[,VALUE...]; write e.g. --combo planner.task=ff,fast-downward.")
+        axes.append([f"{key.strip()}={v.strip()}" for v in values.split(",") if v.strip()])
+    return [(" ".join(c) or "default", list(c)) for c in itertools.product(*axes)]
+
+
+def find_suite(name: str) -> Path:
+    path = Path(name)
+    if path.suffix == ".toml" or path.exists():
+        if not path.exists():
+            raise UserError(f"The suite file {path} does not exist.")
+        return path
+    for folder in (Path.cwd() / "benchmarks", SUITES_DIR):
+        if (folder / f"{name}.toml").exists():
+            return folder / f"{name}.toml"
+    known = sorted({p.stem for d in (Path.cwd() / "benchmarks", SUITES_DIR) if d.is_dir() for p in d.glob("*.toml")})
+    raise UserError(f"Unknown suite '{name}'; give a suite file (.toml) or one of: {', '.join(known) or 'none found'}.")
+
+
+def load_suite(name: str, quick: bool = False, seeds=None, time_limit=None, combos=(), overrides=()) -> Suite:
+    """The suite, with --quick / --seeds / --time-limit / --combo / --set applied (the CLI's options win)."""
+    from ..config import load_toml
+
+    path = find_suite(name)
+    data = load_toml(path)
+    if not isinstance(data.get("rows"), list) or not data["rows"]:
+        raise UserError(f"The suite {path} has no [[rows]]; add at least one row with a name and a config.")
+    quick_cfg = {**QUICK, **data.get("quick", {})} if quick else {}
+    limit = float(time_limit or quick_cfg.get("time_limit") or data.get("time_limit", 120))
+    rows = []
+    for i, r in enumerate(data["rows"]):
+        if "name" not in r or "config" not in r:
+            raise UserError(f"Row {i + 1} of the suite {path} needs a name and a config.")
+        row_seeds = seeds if seeds is not None else quick_cfg.get("seeds") or r.get("seeds", data.get("seeds", "0-9"))
+        sets = r.get("set", [])
+        if isinstance(sets, str) or not all(isinstance(s, str) for s in sets):
+            raise UserError(f"The row '{r['name']}' of {path}: set must be a list of \"key=value\" strings.")
+        rows.append(Row(r["name"], str((path.parent / r["config"]).resolve()), list(sets),
+                        parse_seeds(row_seeds), dict(r.get("paper", {}))))
+    names = [r.name for r in rows]
+    if len(set(names)) != len(names):
+        raise UserError(f"The suite {path} has two rows with the same name; give every row its own name.")
+    combo_specs = list(combos) or list(data.get("combo", []))
+    crossed = parse_combos(combo_specs)
+    if overrides:  # part of the combination's name, so that runs with other --set values are not taken as done
+        crossed = [(" ".join([*([label] if sets else []), *overrides]), [*sets, *overrides]) for label, sets in crossed]
+    return Suite(str(data.get("name", path.stem)), str(path), rows, crossed, limit)
+
+
+def mark_skipped(suite: Suite) -> None:
+    """A row whose config is missing or whose domain is not installed is skipped, with the reason."""
+    from .. import api, config as cfg
+    from ..plugins import PluginHost
+
+    host = PluginHost()
+
+    def check(overrides):
+        config = api.resolve_config(row.config, overrides)
+        domain = config["problem"].get("domain")
+        if domain and not config["problem"].get("file"):
+            cfg.check(config, host["domains"].get(domain).params)
+        elif config["problem"].get("file") and not Path(config["problem"]["file"]).exists():
+            raise UserError(f"the problem file {config['problem']['file']} does not exist")
+
+    for row in suite.rows:
+        try:
+            check(row.overrides)
+        except UserError as exc:
+            row.skipped = str(exc).rstrip(".").replace(f"{Path.cwd()}/", "")
+            continue
+        for label, sets in suite.combos:  # a bad --combo or --set is the user's error, not the row's
+            try:
+                check([*row.overrides, *sets])
+            except UserError as exc:
+                raise UserError(f"The combination '{label}' does not fit the row '{row.name}': {exc}") from None

@@ -1,0 +1,56 @@
+"""Registers the Drawer (O) / (N) domain (BENCHMARKS.md section 2) and its pose generators."""
+from interlayer import hookimpl
+
+PARAMS = {"variant": "O"}
+
+
+def make_problem(params, seed):
+    from interlayer.domain import Problem
+    from interlayer.errors import UserError
+    from interlayer_pr2.world import ARMS
+
+    from .domain import DOMAIN
+    from .scene import make_layout
+    from .world import DrawerGeometry
+
+    variant = params["variant"]
+    if variant not in ("O", "N"):
+        raise UserError(f"problem.variant must be \"O\" (the outer object may stay) or \"N\" (it must be moved), "
+                        f"got {variant!r}.")
+    layout = make_layout(seed, variant)
+    geometry = DrawerGeometry(layout)
+    names = [o.name for o in layout.objects]
+    objects = {o: "obj" for o in names}
+    objects.update({a: "arm" for a in ARMS})
+    objects.update({loc: "loc" for loc in layout.regions})
+    objects["top_drawer"] = "drawer"
+    objects["bp_init"] = "bpose"
+    for a in ARMS:
+        geometry.refs[f"bpfo_top_drawer_{a}"] = ("bpfo", ("top_drawer", a))
+        for o in names:
+            geometry.refs[f"bpfg_{o}_{a}"] = ("bpfg", (o, a))
+            for loc in layout.regions:
+                geometry.refs[f"bpfpd_{o}_{a}_{loc}"] = ("bpfpd", (o, a, loc))
+    init = {("RobotAt", "bp_init"), ("In", "inner", "top_drawer")} | {("HandEmpty", a) for a in ARMS}
+    init |= {("Loose", o) for o in names}
+    goal = "(or (Holding inner left) (Holding inner right))"
+    return Problem(DOMAIN, objects, frozenset(init), goal, geometry,
+                   {"domain": "pr2-drawer", "params": dict(params), "seed": seed, "layout": layout.to_json()},
+                   name=f"drawer-{variant}")
+
+
+@hookimpl
+def interlayer_register_domains(registry):
+    registry.add("pr2-drawer", make_problem,
+                 "Drawer (O)/(N): a PR2 opens a drawer (a prismatic joint) and takes out the object in it; an object "
+                 "on a stand in front stops the drawer (variant = \"N\": it must be moved first)", params=PARAMS)
+
+
+@hookimpl
+def interlayer_register_pose_generators(registry):
+    from . import generators
+
+    registry.add("drawer:move_base", generators.move_base, "base poses reaching the drawer's handle; else pr2:move_base")
+    registry.add("drawer:open_drawer", generators.open_drawer,
+                 "random pull distances (stratified within the joint's limits), straight pull on the handle by IK")
+    registry.add("drawer:pick", generators.pick, "pr2:pick, once the object in the drawer is exposed for a top grasp")

@@ -1,0 +1,219 @@
+"""`interlayer bench` and `interlayer report`: isolation (timeout, memory cap), durability (resume
+after a killed sweep), the Dask executor and the report. Real runs use Gripper-2D (about 2 s each)."""
+import json
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from interlayer.bench import db
+from interlayer.bench.report import write_report
+from interlayer.bench.runner import run_suite
+from interlayer.bench.suite import load_suite, mark_skipped, parse_combos, parse_seeds
+from interlayer.cli import main
+from interlayer.errors import UserError
+
+ROOT = Path(__file__).resolve().parent.parent
+GRIPPER = ROOT / "examples" / "gripper2d.toml"
+
+
+def suite_file(tmp_path, name, rows, **top):
+    """A suite TOML: rows are (name, config, [overrides], extra-toml-lines)."""
+    lines = [f'name = "{name}"'] + [f"{k} = {json.dumps(v)}" for k, v in top.items()]
+    for row in rows:
+        rname, config, sets, *extra = row
+        lines += ["[[rows]]", f'name = "{rname}"', f"config = {json.dumps(str(config))}", f"set = {json.dumps(sets)}",
+                  *extra]
+    path = tmp_path / f"suite-{name}.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def runs(db_path):
+    con = sqlite3.connect(db_path)
+    con.row_factory = sqlite3.Row
+    out = [dict(r) for r in con.execute("SELECT * FROM runs ORDER BY row, combo, seed")]
+    con.close()
+    return out
+
+
+@pytest.fixture
+def fault_plugin(tmp_path, monkeypatch):
+    """Make tests/bench_fault_plugin.py an installed plugin for this test (and its run processes)."""
+    site = tmp_path / "site"
+    info = site / "interlayer_bench_faults-0.0.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: interlayer-bench-faults\nVersion: 0.0\n")
+    (info / "entry_points.txt").write_text("[interlayer.plugins]\nbench-faults = bench_fault_plugin\n")
+    tests = str(Path(__file__).resolve().parent)
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(site), tests, os.environ.get("PYTHONPATH", "")]))
+    monkeypatch.syspath_prepend(tests)
+    monkeypatch.syspath_prepend(str(site))
+    return tmp_path
+
+
+def test_seeds_and_combos_parse():
+    assert parse_seeds("0-2,5") == [0, 1, 2, 5]
+    assert parse_combos(["planner.task=ff,pyperplan", "planner.motion=ompl:PRM"]) == [
+        ("planner.task=ff planner.motion=ompl:PRM", ["planner.task=ff", "planner.motion=ompl:PRM"]),
+        ("planner.task=pyperplan planner.motion=ompl:PRM", ["planner.task=pyperplan", "planner.motion=ompl:PRM"])]
+    # a --set for every run names the combination: the runs without it are not taken as done
+    suite = load_suite("gripper2d", combos=["planner.task=ff,pyperplan"], overrides=["problem.obstructions=2"])
+    assert [label for label, _ in suite.combos] == ["planner.task=ff problem.obstructions=2",
+                                                    "planner.task=pyperplan problem.obstructions=2"]
+    assert suite.combos[0][1] == ["planner.task=ff", "problem.obstructions=2"]
+    assert load_suite("gripper2d", overrides=["planner.task=ff"]).combos == [("planner.task=ff", ["planner.task=ff"])]
+    with pytest.raises(UserError, match="0-9"):
+        parse_seeds("zero")
+    with pytest.raises(UserError, match="--combo planner.task"):
+        parse_combos(["planner.task"])
+
+
+def test_table1_has_the_papers_rows_and_skips_missing_domains(monkeypatch, tmp_path):
+    suite = load_suite("table1")
+    assert [r.name for r in suite.rows] == ["Drawer (O)", "Drawer (N)", *(f"Clutter-{n}" for n in range(15, 45, 5)),
+                                            "Dinner-2", "Dinner-4", "Dinner-6"]
+    assert suite.time_limit == 600 and len(suite.rows[2].seeds) == 20 and len(suite.rows[0].seeds) == 10
+    assert suite.rows[7].paper == {"solved": 63, "mean_time": 68}
+    quick = load_suite("table1", quick=True)
+    assert quick.time_limit == 60 and all(r.seeds == [0, 1] for r in quick.rows)
+    # a row's domain that no plugin provides is skipped with the reason, not failed
+    config = tmp_path / "other.toml"
+    config.write_text('[problem]\ndomain = "no-such-domain"\n')
+    path = suite_file(tmp_path, "s", [("missing", tmp_path / "nope.toml", []), ("unknown", config, []),
+                                      ("ok", GRIPPER, [])])
+    suite = load_suite(str(path))
+    mark_skipped(suite)
+    assert "nope.toml" in suite.rows[0].skipped
+    assert "no-such-domain" in suite.rows[1].skipped
+    assert suite.rows[2].skipped == ""
+
+
+def test_hanging_run_is_killed_at_its_limit_and_recorded_as_timeout(fault_plugin):
+    tmp = fault_plugin
+    hang = tmp / "hang.toml"
+    hang.write_text('[problem]\ndomain = "test-hang"\n')
+    suite = load_suite(str(suite_file(tmp, "hang", [("hang", hang, [])], seeds="0", time_limit=1)))
+    start = time.monotonic()
+    summary = run_suite(suite, tmp / "r.sqlite", jobs=1, grace=2, progress=False)
+    assert time.monotonic() - start < 20
+    [run] = runs(tmp / "r.sqlite")
+    assert summary["statuses"] == {"timeout": 1}
+    assert run["status"] == "timeout" and "hard wall-clock limit of 3 s" in run["reason"]
+    assert 2.5 < run["wall_time"] < 10
+
+
+def test_memory_hog_is_recorded_as_killed(fault_plugin):
+    tmp = fault_plugin
+    hog = tmp / "hog.toml"
+    hog.write_text('[problem]\ndomain = "test-hog"\n')
+    suite = load_suite(str(suite_file(tmp, "hog", [("hog", hog, [])], seeds="0", time_limit=30)))
+    run_suite(suite, tmp / "r.sqlite", jobs=1, memory_mb=1024, progress=False)
+    [run] = runs(tmp / "r.sqlite")
+    assert run["status"] == "killed" and "memory cap of 1024" in run["reason"]
+    assert run["wall_time"] < 20
+
+
+def _alive_with(token: str) -> list[int]:
+    pids = []
+    for proc in Path("/proc").iterdir():
+        try:
+            if proc.name.isdigit() and token in (proc / "cmdline").read_bytes().decode(errors="replace"):
+                pids.append(int(proc.name))
+        except OSError:
+            pass
+    return pids
+
+
+def _some_run_finished(db_path) -> bool:
+    try:
+        return bool(db_path.exists() and runs(db_path))
+    except sqlite3.OperationalError:  # the sweep has not created the schema yet
+        return False
+
+
+def test_resume_after_a_killed_sweep_keeps_finished_runs_and_redoes_the_rest(tmp_path):
+    name = f"resume-sweep-{os.getpid()}"  # names this sweep's run processes (their spec holds it)
+    path = suite_file(tmp_path, name, [("Gripper-2D", GRIPPER, [])], seeds="0-1", time_limit=30)
+    db_path = tmp_path / "r.sqlite"
+    cmd = [sys.executable, "-m", "interlayer.cli", "bench", "--suite", str(path), "--db", str(db_path), "--jobs", "1"]
+    sweep = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    while not _some_run_finished(db_path) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    sweep.send_signal(signal.SIGKILL)  # mid-way: the second run is in progress
+    sweep.wait()
+    first = runs(db_path)
+    assert len(first) == 1 and first[0]["status"] == "solved"
+    deadline = time.monotonic() + 10  # the orphaned run notices that its coordinator is gone: it kills its group
+    while _alive_with(name) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert _alive_with(name) == []
+    assert main(["bench", "--suite", str(path), "--db", str(db_path), "--jobs", "1", "--json"]) == 0
+    after = runs(db_path)
+    assert [r["seed"] for r in after] == [0, 1] and all(r["status"] == "solved" for r in after)
+    kept = next(r for r in after if r["seed"] == first[0]["seed"])
+    assert kept["started"] == first[0]["started"] and kept["finished"] == first[0]["finished"]
+    # the same command once more does nothing
+    assert run_suite(load_suite(str(path)), db_path, progress=False)["ran"] == 0
+
+
+@pytest.fixture(scope="module")
+def dask_db(tmp_path_factory):
+    """A small sweep through a distributed.LocalCluster: Gripper-2D x two task planners x two seeds."""
+    from distributed import LocalCluster
+
+    tmp = tmp_path_factory.mktemp("dask")
+    path = suite_file(tmp, "dask", [("Gripper-2D", GRIPPER, [], "paper = { solved = 100, mean_time = 10 }"),
+                                    ("Drawer", tmp / "drawer.toml", [])], seeds="0-1", time_limit=30)
+    db_path = tmp / "r.sqlite"
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=False, protocol="tcp://",
+                      dashboard_address=None) as cluster:
+        address = cluster.scheduler_address.removeprefix("tcp://")
+        code = main(["bench", "--suite", str(path), "--db", str(db_path), "--executor", f"dask://{address}",
+                     "--combo", "planner.task=fast-downward,pyperplan", "--json"])
+    assert code == 0
+    return db_path
+
+
+def test_dask_sweep_records_every_run(dask_db):
+    rows = runs(dask_db)
+    assert [(r["combo"], r["seed"]) for r in rows] == [("planner.task=fast-downward", 0), ("planner.task=fast-downward", 1),
+                                                       ("planner.task=pyperplan", 0), ("planner.task=pyperplan", 1)]
+    assert all(r["status"] == "solved" and r["plan_length"] == 4 and r["peak_memory_mb"] > 0 for r in rows)
+    assert all("planner.task=pyperplan" in json.loads(r["overrides"]) for r in rows[2:])
+    versions = json.loads(rows[0]["versions"])
+    assert versions["interlayer"] and versions["python"]
+    with sqlite3.connect(dask_db) as con:
+        assert con.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+
+
+def test_report_on_a_small_database(dask_db, tmp_path):
+    out = tmp_path / "report"
+    doc = tmp_path / "bench.md"
+    doc.write_text("# Mine\n\nintro\n\n<!-- BENCH-REPORT BEGIN -->\nold\n<!-- BENCH-REPORT END -->\n\noutro\n")
+    assert main(["report", str(dask_db), "--out", str(out), "--doc", str(doc)]) == 0
+    md = (out / "report.md").read_text()
+    rows = runs(dask_db)
+    fd = [r["time_total"] for r in rows if r["combo"] == "planner.task=fast-downward"]
+    mean = sum(fd) / 2
+    line = next(x for x in md.splitlines() if x.startswith("| Gripper-2D [planner.task=fast-downward]"))
+    assert line.split(" | ")[1:8] == ["2", "100", "100", f"{mean:.1f} / {mean:.1f}", "10", f"{mean / 10:.3f}", "4 / 4"]
+    assert "| Drawer | 0 | skipped: No such file or folder" in md
+    assert "planner combinations" in md and "histogram.png" in md and "time-split.png" in md
+    for png in ("histogram.png", "time-split.png"):
+        assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "data:image/png;base64," in (out / "report.html").read_text()
+    text = doc.read_text()
+    assert text.startswith("# Mine\n\nintro\n\n<!-- BENCH-REPORT BEGIN -->") and text.endswith("END -->\n\noutro\n")
+    assert "\nold\n" not in text and "](report/histogram.png)" in text
+
+
+def test_report_names_a_missing_database(tmp_path, capsys):
+    assert main(["report", str(tmp_path / "none.sqlite"), "--out", str(tmp_path / "r")]) == 2
+    assert "does not exist" in capsys.readouterr().err
