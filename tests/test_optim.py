@@ -75,7 +75,7 @@ def test_validator_rejects_velocities_changing_too_fast(hold_run, tmp_path):
         p["velocities"] = [2 * v for v in p["velocities"]]
     (dst / "trajectory.json").write_text(json.dumps(traj))
     errors = api.validate(dst)
-    assert errors and ("changes velocity" in errors[0] or "too fast" in errors[0]), errors
+    assert errors and ("accelerates faster" in errors[0] or "too fast" in errors[0]), errors
 
 
 def test_validator_rejects_claimed_accelerations_beyond_the_limit(hold_run, tmp_path):

@@ -3,8 +3,10 @@
 The geometric path is the piecewise-linear one the planner checked for collisions. It is cut at its
 corners (where the direction turns by more than ``CORNER``; a controller must stop there), each
 piece densified (``step`` apart), a cubic spline through those points time-parameterised by TOPP-RA
-from rest to rest, and the result reported at the densified points themselves: positions exactly on
-the checked path, ``time_from_start``, velocities and accelerations a controller can follow. Where
+from rest to rest, and the result reported at the path's own points: the same positions, and so the
+same collision checks between them, with ``time_from_start``, velocities and accelerations a
+controller can follow (between two points, the average speed and the change of velocity per second
+stay within the limits, as they do everywhere along the timing). Where
 TOPP-RA reports a numerical failure, that piece is timed chord by chord with the time-optimal
 rest-to-rest trapezoid instead (exact for straight lines, slower elsewhere).
 """
@@ -30,7 +32,8 @@ def time_parameterize(points, vmax, amax, step: float = 0.02) -> list[dict]:
     out = []
     for piece in _pieces(P):
         try:
-            timed = _toppra(_dense(piece, step), vmax, amax)
+            dense, vertices = _dense(piece, step)
+            timed = [_toppra(dense, vmax, amax)[i] for i in vertices]
         except RuntimeError:
             timed = _trapezoids(piece, step, vmax, amax)
         t0 = out[-1]["time_from_start"] if out else 0.0
@@ -69,7 +72,8 @@ def _toppra(P, vmax, amax):
     toppra.setup_logging("ERROR")
     dof = P.shape[1]
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
-    if len(P) == 2:  # a spline needs three points: add the midpoint
+    midpoint = len(P) == 2
+    if midpoint:  # a spline needs three points: add the midpoint (not reported)
         P, s = np.array([P[0], (P[0] + P[1]) / 2, P[1]]), np.array([0.0, s[1] / 2, s[1]])
     path = toppra.SplineInterpolator(s, P, bc_type="natural")
     grid = np.unique(np.concatenate([s, (s[1:] + s[:-1]) / 2]))  # the points themselves, and midpoints
@@ -94,7 +98,7 @@ def _toppra(P, vmax, amax):
         acc = dq[k] * sdd_at[k] + ddq[k] * sd[i] ** 2
         out.append(_point(P[k], vel, acc, t[i]))
     out[0]["velocities"] = out[-1]["velocities"] = [0.0] * dof
-    return out
+    return [out[0], out[2]] if midpoint else out
 
 
 def _point(q, v, a, t):
@@ -103,11 +107,10 @@ def _point(q, v, a, t):
 
 
 def _dense(P, step):
-    out = [P[0]]
+    """The polyline with points inserted at most ``step`` apart, and the indices of its own points."""
+    out, vertices = [P[0]], [0]
     for a, b in zip(P, P[1:]):
-        d = np.linalg.norm(b - a)
-        if d < 1e-9:
-            continue
-        n = max(1, int(np.ceil(d / step)))
+        n = max(1, int(np.ceil(np.linalg.norm(b - a) / step)))
         out += [a + (b - a) * k / n for k in range(1, n + 1)]
-    return np.array(out)
+        vertices.append(len(out) - 1)
+    return np.array(out), vertices

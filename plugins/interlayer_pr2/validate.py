@@ -204,13 +204,19 @@ def _check_timing(geometry, space, group_name, names, points, path, at):
                 j = int(np.argmax(value / tol))
                 return f"{at}: point {k}: {names[j]} {word} {value[j]:.3f} exceeds its limit {limit[j]:.3f}"
     if all("velocities" in p for p in points):
+        # From velocity v0 to v1 in dt with |acceleration| <= a, a joint moves (v0 + v1) / 2 dt, give or
+        # take at most a dt^2 / 4; and its velocity changes by at most a dt.
         v = np.array([p["velocities"] for p in points], float)
         for k in range(len(points) - 1):
             dt = times[k + 1] - times[k]
-            if dt > 0 and (np.abs(v[k + 1] - v[k]) > atol * dt).any():
-                j = int(np.argmax(np.abs(v[k + 1] - v[k]) / atol))
-                return (f"{at}: {names[j]} changes velocity at {abs(v[k + 1][j] - v[k][j]) / dt:.3f} per s^2 between "
-                        f"points {k} and {k + 1} (limit {amax[j]:.3f})")
+            if dt <= 0:
+                continue
+            change = np.abs(v[k + 1] - v[k])
+            off = np.abs(space.difference(path[k], path[k + 1]) - (v[k] + v[k + 1]) / 2 * dt)
+            if (change > atol * dt).any() or (off > atol * dt * dt / 4 + 1e-6).any():
+                j = int(np.argmax(np.maximum(change / (atol * dt), off / (atol * dt * dt / 4 + 1e-6))))
+                return (f"{at}: {names[j]} accelerates faster than its limit {amax[j]:.3f} between points {k} and "
+                        f"{k + 1} (its positions, velocities and times need more)")
     return None
 
 
