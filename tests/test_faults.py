@@ -244,14 +244,17 @@ def test_ctrl_c_during_plan_writes_the_trace_and_exits_130(plugin_dir, tmp_path)
     out = tmp_path / "run"
     env = dict(os.environ, PYTHONPATH=str(folder))
     env.pop("INTERLAYER_DEBUG", None)
+    # A shell's background job (CI run with `&`) starts with SIGINT ignored, and so would the CLI:
+    # give it the default disposition, as in a terminal.
     proc = subprocess.Popen([sys.executable, "-m", "interlayer.cli", "plan", EXAMPLE, "--out", str(out),
-                             "--set", "pose_generators.pick=slow:pick"], stderr=subprocess.PIPE, text=True, env=env)
+                             "--set", "pose_generators.pick=slow:pick"], stderr=subprocess.PIPE, text=True, env=env,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     for line in proc.stderr:
         if "generating" in line:
             break
     proc.send_signal(signal.SIGINT)
     err = proc.stderr.read()
-    assert proc.wait(timeout=60) == 130
+    assert proc.wait(timeout=60) == 130, err
     assert "Traceback" not in err and "interrupted" in err
     events = json.loads((out / "trace.json").read_text())["events"]
     assert events[-1]["type"] == "end" and events[-1]["status"] == "interrupted"
