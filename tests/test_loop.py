@@ -71,6 +71,17 @@ def events(result, kind):
     return [e for e in result.trace.events if e["type"] == kind]
 
 
+def by_epoch(result, kind, values):
+    """epoch -> the values(event) of the trace's events of ``kind``, in order."""
+    out, epoch = {}, 0
+    for e in result.trace.events:
+        if e["type"] == "reset":
+            epoch = e["epoch"]
+        if e["type"] == kind:
+            out.setdefault(epoch, []).extend(values(e))
+    return out
+
+
 def test_error_free_refinement_needs_no_replanning(host):
     result, _ = run(lambda item, label, world, n: None, host=host)
     assert result.status == "solved" and result.task_planner_calls == 1 and result.replans == 0
@@ -130,14 +141,8 @@ def test_max_traj_count_resets_learned_facts_and_reseeds(host):
     assert resets and resets[0]["reason"] == "MaxTrajCount reached"
     # after the reset the same plan is refined afresh, with generators reseeded (new samples)
     attempts = events(result, "attempt")
-    labels_by_epoch = {}
-    epoch = 0
-    for e in result.trace.events:
-        if e["type"] == "reset":
-            epoch = e["epoch"]
-        if e["type"] == "attempt":
-            labels_by_epoch.setdefault(epoch, set()).add(e["candidate"])
-    assert labels_by_epoch[0].isdisjoint(labels_by_epoch[1])
+    labels_by_epoch = by_epoch(result, "attempt", lambda e: [e["candidate"]])
+    assert set(labels_by_epoch[0]).isdisjoint(labels_by_epoch[1])
     assert len(attempts) >= 5
 
 
@@ -150,13 +155,7 @@ def test_reset_clears_learned_facts(host):
     result, _ = run(script, host=host, max_traj_count=1)
     assert result.status == "solved" and events(result, "reset")
     fact = "(Obstructs z gp_a a)"
-    learned_in_epoch = {}
-    epoch = 0
-    for e in result.trace.events:
-        if e["type"] == "reset":
-            epoch = e["epoch"]
-        if e["type"] == "failure":
-            learned_in_epoch.setdefault(epoch, []).extend(e["facts"])
+    learned_in_epoch = by_epoch(result, "failure", lambda e: e["facts"])
     assert fact in learned_in_epoch[0] and fact in learned_in_epoch[1]
     assert result.learned_facts == []  # the solving epoch learned nothing
 

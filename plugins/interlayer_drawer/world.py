@@ -77,18 +77,8 @@ class DrawerGeometry(PR2Geometry):
                      "positions": list(w.joints[CABINET])})
         w = w.with_gripper(arm, "open")
         segs.append({"kind": "gripper", "arm": arm, "command": "open"})
-        res = self._line(w, arm, retreat, "retreat", segs, acc)
-        if not res.ok:
-            return _failure(res, "handle retreat")
-        w = w.with_arm(arm, retreat[-1]).with_gripper(arm, "closed")
-        if self.in_collision(w):
-            return self._stuck(w, "closing the gripper after the retreat")
-        segs.append({"kind": "gripper", "arm": arm, "command": "close"})
-        res = self._plan(motion, self.arm_query(w, arm, retreat[-1], TUCKED_ARMS[arm], "handle tuck", acc), "transit",
-                         group, segs, _holding(w), w, acc)
-        if not res.ok:
-            return _failure(res, "handle tuck")
-        return StepOutcome(True, replace(w.with_arm(arm, TUCKED_ARMS[arm]), tloc={}), segs)
+        out = self.retreat_and_tuck(motion, w, arm, group, retreat, "handle", segs, acc)
+        return replace(out, world=replace(out.world, tloc={})) if out.ok else out
 
     def describe(self) -> str:
         """The scene's (O)/(N) property, checked on a fine grid (``interlayer check``)."""

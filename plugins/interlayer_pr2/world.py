@@ -561,17 +561,24 @@ class PR2Geometry:
         if self.in_collision(w):
             return self._stuck(w, "opening the gripper at the put-down pose")
         segs.append({"kind": "release", "arm": arm, "object": obj, "pose": P.tolist()})
-        res = self._line(w, arm, (put, *back), "retreat", segs, acc)
+        return self.retreat_and_tuck(motion, w, arm, group, (put, *back), "place", segs, acc)
+
+    def retreat_and_tuck(self, motion, w, arm, group, retreat, what, segs, acc):
+        """The open hand's straight retreat along ``retreat``, the gripper closed, the arm tucked: the
+        end of every step that lets go of something (``what`` names it in failures)."""
+        from interlayer_pinocchio import TUCKED_ARMS
+
+        res = self._line(w, arm, retreat, "retreat", segs, acc)
         if not res.ok:
-            return _failure(res, "place retreat")
-        w = w.with_arm(arm, back[-1]).with_gripper(arm, "closed")
+            return _failure(res, f"{what} retreat")
+        w = w.with_arm(arm, retreat[-1]).with_gripper(arm, "closed")
         if self.in_collision(w):
             return self._stuck(w, "closing the gripper after the retreat")
         segs.append({"kind": "gripper", "arm": arm, "command": "close"})
-        res = self._plan(motion, self.arm_query(w, arm, back[-1], TUCKED_ARMS[arm], "place tuck", acc), "transit", group,
-                         segs, _holding(w), w, acc)
+        res = self._plan(motion, self.arm_query(w, arm, retreat[-1], TUCKED_ARMS[arm], f"{what} tuck", acc), "transit",
+                         group, segs, _holding(w), w, acc)
         if not res.ok:
-            return _failure(res, "place tuck")
+            return _failure(res, f"{what} tuck")
         return StepOutcome(True, w.with_arm(arm, TUCKED_ARMS[arm]), segs)
 
     # -- articulated bodies ------------------------------------------------------------------------
