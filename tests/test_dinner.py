@@ -62,7 +62,7 @@ def test_unstackable_failure_becomes_facts():
     world = geometry.initial_world()
     G = np.eye(4)
     world = replace(world, objects={k: v for k, v in world.objects.items() if k != bowl}, held={"left": (bowl, G)})
-    step = GroundStep("stack", (bowl, "left", cup, "side", "room_a", f"sp_{bowl}_{cup}"))
+    step = GroundStep("stack", (bowl, "left", cup, "room_a", f"sp_{bowl}_{cup}"))
     (cand,) = list(generators.place(problem, step, world, np.random.default_rng(0)))
     out = geometry.refine_step(step, world, cand, motion=None)
     assert not out.ok and out.failure.kind == "unstackable" and out.failure.static
@@ -90,11 +90,25 @@ def test_optimal_plans_use_the_tray_and_cost_the_known_optimum(host, planner):
     assert lama.status == "solved" and lama.cost > 118
 
 
-def test_side_costs_and_handoff_options_build():
+def test_side_costs_make_cross_reaching_dearer(host):
+    """side_costs: picking an object on the robot's left with the right hand costs 3, so the optimal
+    Dinner-2 plan uses the hand on each object's side."""
+    from interlayer.errors import UserError
+    from interlayer_dinner.domain import make_domain
+
     model = abstract(_problem(2, side_costs=True))
     assert model.actions["pick_cross"].cost == 3 and model.actions["pick"].cost == 1
-    assert ("Near", next(iter(model.problem.geometry.kinds)), "left") in model.init or True
-    assert "handoff" in abstract(_problem(2, handoff=True)).actions
+    res = host["task_planners"].get("fast-downward-bjolp").factory({}).plan(model, model.init, 60)
+    near = {f[1]: f[2] for f in model.init if f[0] == "Near"}
+    at = {f[1][4:]: f[2] for f in model.init if f[0] == "NearLoc" and f[1].startswith("set_")}
+    a, b = sorted(near)
+    # one trip, one object per hand: 104 plus 2 for each pick or place on the other hand's side
+    best = min(104 + 2 * sum((near[o] != arm) + (at[o] != arm) for o, arm in ((a, x), (b, y)))
+               for x, y in (("left", "right"), ("right", "left")))
+    assert res.status == "solved" and res.cost == model.cost(res.plan) == best
+    assert "handoff" in {a.name for a in make_domain(handoff=True).actions}
+    with pytest.raises(UserError, match="handoff"):
+        _problem(2, handoff=True)
 
 
 @pytest.fixture(scope="module")

@@ -1,9 +1,12 @@
 """The Dinner domain's task-level model: a compact STRIPS encoding that cost-optimal planners solve in
 well under a second at N = 6 (DESIGN.md section 4).
 
-Objects: the cups and bowls (``obj``), both arms, two rooms, surfaces (the tables ``side`` / ``dinner``
-where the tray stands, one place setting ``set_<obj>`` per object: fixed references, never symbolic free
-spots) and the tray's slots (``slot<k>``). A slot is in a room while the tray stands on a table there.
+Objects: the cups and bowls (``obj``), both arms, two rooms, locations: surfaces (the tables ``side`` /
+``dinner`` where the tray stands, one place setting ``set_<obj>`` per object: fixed references, never
+symbolic free spots) and ``tray``, which is in a room while it stands on a table there. Which of the
+tray's slots an object goes to is the pose generator's choice (DESIGN.md section 4: symbolic choices
+of spots blow optimal planning up). Objects stack only on the tray (where stacking helps: a stack rides
+along); nothing stacks on a stacked object.
 Driving within a room is part of each manipulation step's refinement (the base drives to a sampled
 pose, then the arm moves); moving between rooms is ``go`` and costs 100; everything else costs 1.
 
@@ -30,13 +33,13 @@ _HOLD = "(and (Holding ?o ?arm) (not (HandEmpty ?arm)))"
 
 BASE = DomainSpec(
     name="dinner",
-    types={"obj": None, "arm": None, "room": None, "loc": None, "surface": "loc", "slot": "loc"},
+    types={"obj": None, "arm": None, "room": None, "loc": None, "surface": "loc"},
     continuous_types=("spose",),
     predicates={
         "RobotIn": ("room",), "Adjacent": ("room", "room"),
         "HandEmpty": ("arm",), "Holding": ("obj", "arm"), "HoldingTray": (),
         "At": ("obj", "loc"), "LocIn": ("loc", "room"), "Accepts": ("surface", "obj"),
-        "Free": ("slot",), "Filled": ("slot",), "Next": ("slot", "slot"), "TrayAt": ("surface",), "TraySpot": ("surface",),
+ "TrayAt": ("surface",), "TraySpot": ("surface",),
         "Clear": ("obj",), "On": ("obj", "obj"),
         "Near": ("obj", "arm"), "NearLoc": ("loc", "arm"),  # on that arm's side (side_costs)
         "IsSP": ("spose", "obj", "obj"), "Unstackable": ("spose",),
@@ -52,32 +55,29 @@ BASE = DomainSpec(
         ActionSpec("place", (("?o", "obj"), ("?arm", "arm"), ("?l", "surface"), ("?r", "room")),
                    "(and (Holding ?o ?arm) (Accepts ?l ?o) (LocIn ?l ?r) (RobotIn ?r))",
                    "(and (At ?o ?l) (HandEmpty ?arm) (not (Holding ?o ?arm)))", pose_generator="dinner:place"),
-        ActionSpec("put_on_tray", (("?o", "obj"), ("?arm", "arm"), ("?s", "slot"), ("?r", "room"), ("?prev", "slot")),
-                   "(and (Holding ?o ?arm) (Free ?s) (Next ?prev ?s) (Filled ?prev) (LocIn ?s ?r) (RobotIn ?r))",
-                   "(and (At ?o ?s) (not (Free ?s)) (Filled ?s) (HandEmpty ?arm) (not (Holding ?o ?arm)))",
+        ActionSpec("put_on_tray", (("?o", "obj"), ("?arm", "arm"), ("?r", "room")),
+                   "(and (Holding ?o ?arm) (LocIn tray ?r) (RobotIn ?r))",
+                   "(and (At ?o tray) (HandEmpty ?arm) (not (Holding ?o ?arm)))",
                    pose_generator="dinner:place"),
-        ActionSpec("take_off_tray", (("?o", "obj"), ("?arm", "arm"), ("?s", "slot"), ("?r", "room")),
-                   "(and (HandEmpty ?arm) (At ?o ?s) (Clear ?o) (LocIn ?s ?r) (RobotIn ?r))",
-                   "(and (Holding ?o ?arm) (not (HandEmpty ?arm)) (not (At ?o ?s)) (Free ?s) (not (Filled ?s)))",
+        ActionSpec("take_off_tray", (("?o", "obj"), ("?arm", "arm"), ("?r", "room")),
+                   "(and (HandEmpty ?arm) (At ?o tray) (Clear ?o) (LocIn tray ?r) (RobotIn ?r))",
+                   "(and (Holding ?o ?arm) (not (HandEmpty ?arm)) (not (At ?o tray)))",
                    pose_generator="dinner:pick"),
-        ActionSpec("stack", (("?o", "obj"), ("?arm", "arm"), ("?lower", "obj"), ("?l", "loc"), ("?r", "room"),
-                             ("?sp", "spose")),
-                   """(and (Holding ?o ?arm) (IsSP ?sp ?o ?lower) (not (Unstackable ?sp)) (At ?lower ?l) (Clear ?lower)
-                           (LocIn ?l ?r) (RobotIn ?r))""",
+        ActionSpec("stack", (("?o", "obj"), ("?arm", "arm"), ("?lower", "obj"), ("?r", "room"), ("?sp", "spose")),
+                   """(and (Holding ?o ?arm) (IsSP ?sp ?o ?lower) (not (Unstackable ?sp)) (At ?lower tray) (Clear ?lower)
+                           (LocIn tray ?r) (RobotIn ?r))""",
                    "(and (On ?o ?lower) (not (Clear ?lower)) (HandEmpty ?arm) (not (Holding ?o ?arm)))",
                    learn={"unstackable": ("(Unstackable ?blocker)",)}, pose_generator="dinner:place"),
-        ActionSpec("unstack", (("?o", "obj"), ("?arm", "arm"), ("?lower", "obj"), ("?l", "loc"), ("?r", "room")),
-                   "(and (HandEmpty ?arm) (On ?o ?lower) (At ?lower ?l) (LocIn ?l ?r) (RobotIn ?r))",
+        ActionSpec("unstack", (("?o", "obj"), ("?arm", "arm"), ("?lower", "obj"), ("?r", "room")),
+                   "(and (HandEmpty ?arm) (On ?o ?lower) (At ?lower tray) (LocIn tray ?r) (RobotIn ?r))",
                    "(and (Holding ?o ?arm) (not (HandEmpty ?arm)) (not (On ?o ?lower)) (Clear ?lower))",
                    pose_generator="dinner:pick"),
         ActionSpec("pick_tray", (("?t", "surface"), ("?r", "room")),
                    "(and (HandEmpty left) (HandEmpty right) (TrayAt ?t) (LocIn ?t ?r) (RobotIn ?r))",
-                   """(and (HoldingTray) (not (HandEmpty left)) (not (HandEmpty right)) (not (TrayAt ?t))
-                           (forall (?s - slot) (not (LocIn ?s ?r))))""", pose_generator="dinner:pick_tray"),
+                   "(and (HoldingTray) (not (HandEmpty left)) (not (HandEmpty right)) (not (TrayAt ?t)) (not (LocIn tray ?r)))", pose_generator="dinner:pick_tray"),
         ActionSpec("place_tray", (("?t", "surface"), ("?r", "room")),
                    "(and (HoldingTray) (TraySpot ?t) (LocIn ?t ?r) (RobotIn ?r))",
-                   """(and (not (HoldingTray)) (HandEmpty left) (HandEmpty right) (TrayAt ?t)
-                           (forall (?s - slot) (LocIn ?s ?r)))""", pose_generator="dinner:place_tray"),
+                   "(and (not (HoldingTray)) (HandEmpty left) (HandEmpty right) (TrayAt ?t) (LocIn tray ?r))", pose_generator="dinner:place_tray"),
     ),
 )
 
@@ -88,8 +88,8 @@ HANDOFF = ActionSpec("handoff", (("?o", "obj"), ("?from", "arm"), ("?to", "arm")
 
 # what decides an action's side: the object's place on the side table (pick), else the slot, setting or
 # the lower object's place
-SIDED = {"pick": "(Near ?o ?arm)", "take_off_tray": "(NearLoc ?s ?arm)", "unstack": "(NearLoc ?l ?arm)",
-         "place": "(NearLoc ?l ?arm)", "put_on_tray": "(NearLoc ?s ?arm)", "stack": "(NearLoc ?l ?arm)"}
+SIDED = {"pick": "(Near ?o ?arm)", "take_off_tray": "(Near ?o ?arm)", "unstack": "(Near ?lower ?arm)",
+         "place": "(NearLoc ?l ?arm)", "put_on_tray": "(NearLoc tray ?arm)", "stack": "(Near ?lower ?arm)"}
 
 
 def make_domain(handoff: bool = False, side_costs: bool = False) -> DomainSpec:

@@ -22,6 +22,7 @@ from dataclasses import replace
 import numpy as np
 
 from interlayer.refine import Candidate
+from interlayer_pinocchio import TUCKED_ARMS
 from interlayer_pr2.generators import _bases_for_grasp, _bearing, _fmt, _line, _putdown
 from interlayer_pr2.world import LIFT, PRE_GRASP, pose4, trans, wrap
 
@@ -54,11 +55,21 @@ def go(problem, step, world, rng, limit: int = 6, tries: int = 60):
                 return
 
 
-def pick(problem, step, world, rng, limit: int = 4, tries: int = 60):
+def pick(problem, step, world, rng, limit: int = 4, tries: int = 80):
+    """Grasps whose straight approach runs into no other object (neighbours on a table or the tray
+    leave a top grasp when they block the side ones; the domain learns no obstructions)."""
+    geometry = problem.geometry
     obj, arm = step.args[0], step.args[1]
-    for cand in _bases_for_grasp(problem, world, obj, arm, "base", rng, limit, tries, sampler=near_base):
+    n = 0
+    for cand in _bases_for_grasp(problem, world, obj, arm, "base", rng, 4 * limit, tries, sampler=near_base):
         _, (kind, _, wps) = cand.values["grasp"]
+        w = replace(world, base=tuple(cand.waypoints[0])).with_gripper(arm, "open")
+        if geometry._movables_on_line(w, arm, wps[0], [0.0]) - {obj}:
+            continue
+        n += 1
         yield Candidate((cand.waypoints[0], *wps), {}, f"{cand.label}, {kind} grasp")
+        if n >= limit:
+            return
 
 
 def target_pose(geometry, step, world):
@@ -66,8 +77,6 @@ def target_pose(geometry, step, world):
     obj = step.args[0]
     if action == "place":
         return geometry.setting_pose(obj)
-    if action == "put_on_tray":
-        return geometry.slot_pose(world, step.args[2], obj)
     return geometry.stack_pose(world, obj, step.args[2])
 
 
@@ -82,8 +91,17 @@ def place(problem, step, world, rng, limit: int = 4, tries: int = 60):
             pairs = violations(geometry, obj, step.args[2])
             yield Candidate((), {"unstackable": verdict.reason, "pairs": pairs}, f"unstackable: {verdict.reason}")
             return
+    if step.action.startswith("put_on_tray"):  # the first free slots, nearest the robot first
+        for slot in geometry.free_slots(world)[:2]:
+            yield from _put(problem, step, world, rng, geometry.slot_pose(world, slot, obj), {"slot": slot}, limit, tries)
+        return
+    yield from _put(problem, step, world, rng, target_pose(geometry, step, world), {}, limit, tries)
+
+
+def _put(problem, step, world, rng, P, values, limit, tries):
+    geometry = problem.geometry
+    obj, arm = step.args[0], step.args[1]
     G = world.held[arm][1]
-    P = target_pose(geometry, step, world)
     x, y, z = (float(v) for v in P[:3, 3])
     n = 0
     for _ in range(tries):
@@ -102,7 +120,7 @@ def place(problem, step, world, rng, limit: int = 4, tries: int = 60):
         if lower is None or back is None:
             continue
         n += 1
-        yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])), {"tloc": (obj, Q)},
+        yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])), {"tloc": (obj, Q), **values},
                         f"base at {_fmt(base)}, {obj} at {_fmt((x, y, z))}")
         if n >= limit:
             return
@@ -132,7 +150,7 @@ def pick_tray(problem, step, world, rng, limit: int = 4, tries: int = 40):
     grips = tray_grips(P)
     n = 0
     for k in range(tries):
-        d, dy, dyaw = (0.62, 0.0, 0.0) if k == 0 else (rng.uniform(0.52, 0.72), rng.uniform(-0.08, 0.08), rng.uniform(-0.2, 0.2))
+        d, dy, dyaw = (0.68, 0.0, 0.0) if k == 0 else (rng.uniform(0.58, 0.78), rng.uniform(-0.08, 0.08), rng.uniform(-0.2, 0.2))
         base = _base_of(P @ trans(-d, dy, 0.0) @ pose4(0, 0, 0, dyaw))
         if not _free(geometry, world, base):
             continue
@@ -169,7 +187,9 @@ def place_tray(problem, step, world, rng, limit: int = 4, tries: int = 30):
         P = pose4(x + dx * math.cos(yaw), y + dy, z, yaw + dyaw)
         base = _base_of(P @ np.linalg.inv(rel))
         w = replace(world, base=base)
-        if not geometry.base_space.within_bounds(base) or geometry.in_collision(w):
+        tucked = replace(w, objects={**w.objects, **{k: base_matrix(base) @ r for k, r in world.carrying.items()}},
+                         carrying={}, arms=dict(TUCKED_ARMS), grippers={"left": "closed", "right": "closed"})
+        if not geometry.base_space.within_bounds(base) or geometry.in_collision(w) or geometry.in_collision(tucked):
             continue
         B = base_matrix(base)
         backs = []
@@ -186,6 +206,3 @@ def place_tray(problem, step, world, rng, limit: int = 4, tries: int = 30):
             if n >= limit:
                 return
 
-
-def handoff(problem, step, world, rng):  # pragma: no cover - see the issue note: not built yet
-    return iter(())

@@ -6,9 +6,7 @@ World frame: the PR2 starts at the origin facing +x, in room A (x > WALL_X). The
 Coal boxes) stands at x = WALL_X with a doorway of DOOR wide around y = 0. The side table is in front
 of the robot; the dinner table in room B, its near edge facing the doorway. The tray rests at a fixed
 spot of a table, its near edge overhanging the table's edge (OVERHANG) so that both grippers close
-around it; its slots (fixed references, like the place settings) hold one object each, and an object
-stacked on an object in a slot rides along. N // 2 slots (at least one): carrying every object in one
-trip needs stacking.
+around it; its N slots hold one object each, and an object stacked on an object in a slot rides along.
 """
 from __future__ import annotations
 
@@ -23,7 +21,7 @@ SIDE = ((0.85, 0.1), (0.6, 1.8))  # side table centre (x, y), size (x, y)
 DINNER = ((-2.45, 0.0), (0.6, 1.8))  # dinner table, room B
 WALL_X, WALL_T, WALL_H, DOOR = -0.9, 0.1, 1.5, 1.2
 LIMITS = ((-3.6, 1.6), (-2.2, 2.2))  # the base's workspace (both rooms)
-TRAY = (0.30, 0.50, 0.02)  # x (depth), y (width), thickness
+TRAY = (0.36, 0.50, 0.02)  # x (depth), y (width), thickness
 OVERHANG = 0.07
 CUP = ((0.026, 0.032), 0.09)  # radius range, height
 BOWL = ((0.040, 0.044), 0.05)
@@ -55,9 +53,9 @@ def tray_spot(table) -> tuple:
 
 def slot_offsets(n_slots: int) -> list:
     """Slot centres in the tray's frame: one row for up to three, then two rows."""
-    rows = 1 if n_slots <= 3 else 2
+    rows = 1 if n_slots <= 3 else 2  # (at 10 slots the bowls stand 1 cm apart)
     cols = math.ceil(n_slots / rows)
-    xs = [0.02] if rows == 1 else [-0.06, 0.07]
+    xs = [0.04] if rows == 1 else [0.10, -0.02]  # the far row first: the near one is close to the hands
     ys = [TRAY[1] * ((c + 0.5) / cols - 0.5) for c in range(cols)]
     return [(xs[k // cols], ys[k % cols]) for k in range(n_slots)]
 
@@ -106,5 +104,5 @@ def make_layout(seed: int, n: int) -> Layout:
         regions[f"set_{name}"] = (x - r, x + r, y - r, y + r)
     return Layout(fixed, objects, regions, names[0], "dinner", ("side", "top"),
                   extra={"table_top": TOP, "supports": ("side_table", "dinner_table"), "base_limits": LIMITS,
-                         "kinds": {**kinds, "tray": "tray"}, "settings": setting_xy, "slots": slot_offsets(max(1, n // 2)),
+                         "kinds": {**kinds, "tray": "tray"}, "settings": setting_xy, "slots": slot_offsets(n),
                          "torso_height": 0.2})

@@ -90,18 +90,23 @@ class DinnerGeometry(PR2Geometry):
             out += [o for o, (support, _) in world.riders.items() if support == name and o not in out]
         return out
 
-    def sides(self, names, slots) -> set:
-        """Near / NearLoc facts (side_costs): the robot faces the side table (+x) and the tray's near edge,
-        and the dinner table (-x): its left is +y, the tray's +y, and -y."""
-        facts = set()
+    def sides(self, names) -> set:
+        """Near / NearLoc facts (side_costs): the left or right half of the objects on the side table (the
+        robot's left is +y, facing it) and of the place settings (its left is -y, facing the dinner table);
+        the tray stands on its right."""
+        settings = self.layout.extra["settings"]
+        mid_o = float(np.median([self.specs[o].pose[1] for o in names]))
+        mid_s = float(np.median([settings[o][1] for o in names]))
+        facts = {("NearLoc", "tray", "right")}
         for o in names:
-            facts.add(("Near", o, "left" if self.specs[o].pose[1] > 0 else "right"))
-            facts.add(("NearLoc", f"set_{o}", "left" if self.layout.extra["settings"][o][1] < 0 else "right"))
-        for s in slots:
-            facts.add(("NearLoc", s, "left" if self.slots[s][1] > 0 else "right"))
-        for arm in ("left", "right"):
-            facts |= {("NearLoc", "side", arm), ("NearLoc", "dinner", arm)}
+            facts.add(("Near", o, "left" if self.specs[o].pose[1] > mid_o else "right"))
+            facts.add(("NearLoc", f"set_{o}", "left" if settings[o][1] < mid_s else "right"))
         return facts
+
+    def free_slots(self, world) -> list:
+        """The tray's slots with nothing standing in them, in order."""
+        taken = {slot for o, (support, slot) in world.riders.items() if support == "tray" and o in world.objects}
+        return [s for s in self.slots if s not in taken]
 
     # -- the carried tray -------------------------------------------------------------------------
     def sync(self, world) -> np.ndarray:
@@ -192,7 +197,7 @@ class DinnerGeometry(PR2Geometry):
             out = super().refine_step(GroundStep("place", step.args), world, candidate, motion)
             if out.ok and action != "place":
                 obj = step.args[0]
-                support = ("tray", step.args[2]) if action == "put_on_tray" else (step.args[2], "stack")
+                support = ("tray", candidate.values["slot"]) if action == "put_on_tray" else (step.args[2], "stack")
                 out = replace(out, world=replace(out.world, riders={**out.world.riders, obj: support}))
             return out
         acc = [0.0]
