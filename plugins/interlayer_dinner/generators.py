@@ -23,7 +23,7 @@ import numpy as np
 
 from interlayer.refine import Candidate
 from interlayer_pinocchio import TUCKED_ARMS
-from interlayer_pr2.generators import _bases_for_grasp, _bearing, _fmt, _line, _putdown
+from interlayer_pr2.generators import _bearing, _fmt, _line, _problem_grasps, _putdown, _waypoints, grasp_poses
 from interlayer_pr2.world import LIFT, PRE_GRASP, pose4, trans, wrap
 
 from .scene import HOME, TRAY, near_base, tray_spot
@@ -55,21 +55,30 @@ def go(problem, step, world, rng, limit: int = 6, tries: int = 60):
                 return
 
 
-def pick(problem, step, world, rng, limit: int = 4, tries: int = 80):
-    """Grasps whose straight approach runs into no other object (neighbours on a table or the tray
-    leave a top grasp when they block the side ones; the domain learns no obstructions)."""
+def pick(problem, step, world, rng, limit: int = 4, tries: int = 60):
+    """Base poses in front of the object, then each grasp (side, top) whose straight approach runs into
+    no other object (neighbours on a table or the tray block side grasps; the domain learns no
+    obstructions)."""
     geometry = problem.geometry
     obj, arm = step.args[0], step.args[1]
+    if world.holder(obj) is not None or world.held.get(arm):
+        return
+    P = world.objects[obj]
+    x, y = P[0, 3], P[1, 3]
     n = 0
-    for cand in _bases_for_grasp(problem, world, obj, arm, "base", rng, 4 * limit, tries, sampler=near_base):
-        _, (kind, _, wps) = cand.values["grasp"]
-        w = replace(world, base=tuple(cand.waypoints[0])).with_gripper(arm, "open")
-        if geometry._movables_on_line(w, arm, wps[0], [0.0]) - {obj}:
+    for i, base in enumerate([tuple(world.base)] + [near_base(rng, x, y) for _ in range(tries)]):
+        if not _free(geometry, world, base):
             continue
-        n += 1
-        yield Candidate((cand.waypoints[0], *wps), {}, f"{cand.label}, {kind} grasp")
-        if n >= limit:
-            return
+        w = replace(world, base=base)
+        for kind, T in grasp_poses(geometry, obj, P, _bearing(base, x, y), _problem_grasps(problem, obj), rng, n_side=2):
+            wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,))
+            if wps is None or geometry._movables_on_line(w.with_gripper(arm, "open"), arm, wps[0], [0.0]) - {obj}:
+                continue
+            n += 1
+            yield Candidate((base, *wps), {}, f"{'stay at' if i == 0 else 'base at'} {_fmt(base)}, {kind} grasp")
+            if n >= limit:
+                return
+            break
 
 
 def target_pose(geometry, step, world):

@@ -186,8 +186,7 @@ def _annulus(rng, x, y, rmin=0.45, rmax=0.80):
     return (float(bx), float(by), float(wrap(math.atan2(y - by, x - bx) + rng.uniform(-0.3, 0.3))))
 
 
-def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=None, sampler=_annulus):
-    """``sampler(rng, x, y) -> base`` draws base poses for an object at (x, y) (default: an annulus)."""
+def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=None):
     from dataclasses import replace
 
     geometry = problem.geometry
@@ -197,7 +196,7 @@ def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=No
     P = world.objects[obj]
     x, y = P[0, 3], P[1, 3]
     kinds = _problem_grasps(problem, obj)
-    candidates = [tuple(world.base)] + [sampler(rng, x, y) for _ in range(tries)]
+    candidates = [tuple(world.base)] + [_annulus(rng, x, y) for _ in range(tries)]
     n = 0
     for i, base in enumerate(candidates):
         if not _base_free(geometry, world, base):
