@@ -539,8 +539,6 @@ class PR2Geometry:
         return None
 
     def _place(self, step, world, cand, motion, acc):
-        from interlayer_pinocchio import TUCKED_ARMS
-
         obj, arm = step.args[0], step.args[1]
         lower, back = cand.waypoints
         above, put = lower[0], lower[-1]
