@@ -3,10 +3,13 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import importlib
 import logging
 import multiprocessing
+import sys
 import tempfile
 import time
+import types
 from dataclasses import dataclass, field
 
 from interlayer.planning import TaskPlanner
@@ -26,12 +29,51 @@ UNBOUNDED_ENGINES = ("pyperplan", "pyperplan-opt")
 
 
 def _quiet_environment():
+    _import_up()
     from unified_planning.environment import get_environment
 
     env = get_environment()
     env.credits_stream = None
     env.error_used_name = False
     return env
+
+
+def _import_up():
+    """Import Unified-Planning and its engines without ConfigSpace: UP 1.3 imports it (and with it
+    scipy.stats, most of UP's import time) only to describe engines' tuning parameters, which we
+    never ask for. While UP loads, a stand-in module answers; it imports the real one on first use."""
+    if "unified_planning.shortcuts" in sys.modules:
+        return
+    if "ConfigSpace" in sys.modules:  # already paid for
+        import unified_planning.shortcuts  # noqa: F401
+        return
+    stub = types.ModuleType("ConfigSpace")
+
+    def real():
+        if sys.modules.get("ConfigSpace") is stub:
+            del sys.modules["ConfigSpace"]
+        return importlib.import_module("ConfigSpace")
+
+    class ConfigurationSpace:  # what UP's modules import by name: the real class when called
+        def __new__(cls, *args, **kwargs):
+            return real().ConfigurationSpace(*args, **kwargs)
+
+    def attribute(name):  # any other name: the real module's (not dunders: the import machinery asks for those)
+        if name.startswith("__"):
+            raise AttributeError(name)
+        return getattr(real(), name)
+
+    stub.ConfigurationSpace = ConfigurationSpace
+    stub.__getattr__ = attribute
+    sys.modules["ConfigSpace"] = stub
+    try:
+        import unified_planning.shortcuts  # noqa: F401
+        from unified_planning.environment import get_environment
+
+        get_environment()  # its engine factory imports every installed engine (up_pyperplan too)
+    finally:
+        if sys.modules.get("ConfigSpace") is stub:
+            del sys.modules["ConfigSpace"]
 
 
 @dataclass
@@ -86,6 +128,7 @@ class UPTaskPlanner(TaskPlanner):
         """Check a plan with Unified-Planning's own SequentialPlanValidator."""
         if self.validate == "off":
             return super().validate_plan(model, state, plan)
+        _quiet_environment()
         from unified_planning.plans import ActionInstance, SequentialPlan
 
         builder = self._builder(model)

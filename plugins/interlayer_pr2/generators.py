@@ -157,7 +157,7 @@ def _yaw(T):
     return math.atan2(x[1], x[0])
 
 
-def move_base(problem, step, world, rng, limit: int = 6, tries: int = 150, grasps=None):
+def move_base(problem, step, world, rng, limit: int = 6, tries: int = 40, grasps=None):
     to = step.args[0]
     geometry = problem.geometry
     info = geometry.refs.get(to)
@@ -186,6 +186,21 @@ def _annulus(rng, x, y, rmin=0.45, rmax=0.80):
     return (float(bx), float(by), float(wrap(math.atan2(y - by, x - bx) + rng.uniform(-0.3, 0.3))))
 
 
+def _free_bases(geometry, world, x, y, rng, tries):
+    """The current base, then up to ``tries`` collision-free bases of the annulus around (x, y) (at
+    most 20 samples each): an object in a cubby leaves a narrow free sector, and IK, not this check,
+    is what costs."""
+    yield tuple(world.base)
+    free = 0
+    for _ in range(20 * tries):
+        base = _annulus(rng, x, y)
+        if _base_free(geometry, world, base):
+            yield base
+            free += 1
+            if free >= tries:
+                return
+
+
 def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=None):
     from dataclasses import replace
 
@@ -196,10 +211,9 @@ def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=No
     P = world.objects[obj]
     x, y = P[0, 3], P[1, 3]
     kinds = _problem_grasps(problem, obj)
-    candidates = [tuple(world.base)] + [_annulus(rng, x, y) for _ in range(tries)]
     n = 0
-    for i, base in enumerate(candidates):
-        if not _base_free(geometry, world, base):
+    for i, base in enumerate(_free_bases(geometry, world, x, y, rng, tries)):
+        if i == 0 and not _base_free(geometry, world, base):
             continue
         w = replace(world, base=base)
         heading = _bearing(base, x, y)
@@ -235,6 +249,7 @@ def _spots(problem, world, obj, loc, rng, tries):
         if loc == "table" and any(a - m <= x <= b + m and c - m <= y <= d + m for a, b, c, d in others.values()):
             continue
         P = pose4(x, y, z, 0.0)
+        geometry.sync(world)  # the search may have synced another world between two draws
         hits = geometry.cw.objects_overlap(obj, P)
         if hits & geometry.fixed:
             continue
