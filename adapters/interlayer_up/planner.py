@@ -151,10 +151,16 @@ def _dump_pddl(problem, folder, call: int) -> None:
     writer.write_problem(str(folder / f"call-{call:03d}-problem.pddl"))
 
 
-def _up_validate(problem, plan) -> str:
-    from unified_planning.shortcuts import PlanValidator
+def _engine(name: str, params=None, checks: bool = False):
+    """UP's engine ``name``, made as its factory would but without the factory's credits notice, which
+    walks the whole call stack with source lines (20-50 ms for every engine made)."""
+    engine = _quiet_environment().factory.engine(name)(**(params or {}))
+    engine.error_on_failed_checks = checks  # the factory's setting: True only when it chose the engine
+    return engine
 
-    with PlanValidator(problem_kind=problem.kind) as validator:
+
+def _up_validate(problem, plan) -> str:
+    with _engine("sequential_plan_validator", checks=True) as validator:
         check = validator.validate(problem, plan)
     return "" if check.status.name == "VALID" else f"UP's validator rejected the plan: {check.reason}"
 
@@ -165,22 +171,25 @@ def _compile_for(engine, problem):
     from unified_planning.shortcuts import Compiler
 
     chain = []
-    for kind, feature in ((CompilationKind.QUANTIFIERS_REMOVING, ("EXISTENTIAL_CONDITIONS", "UNIVERSAL_CONDITIONS", "FORALL_EFFECTS")),
-                          (CompilationKind.CONDITIONAL_EFFECTS_REMOVING, ("CONDITIONAL_EFFECTS",)),
-                          (CompilationKind.DISJUNCTIVE_CONDITIONS_REMOVING, ("DISJUNCTIVE_CONDITIONS",)),
-                          (CompilationKind.NEGATIVE_CONDITIONS_REMOVING, ("NEGATIVE_CONDITIONS",))):
-        if engine.supports(problem.kind):
+    kind = problem.kind  # computed from scratch at every access: 10-20 ms
+    for compilation, feature in ((CompilationKind.QUANTIFIERS_REMOVING, ("EXISTENTIAL_CONDITIONS", "UNIVERSAL_CONDITIONS", "FORALL_EFFECTS")),
+                                 (CompilationKind.CONDITIONAL_EFFECTS_REMOVING, ("CONDITIONAL_EFFECTS",)),
+                                 (CompilationKind.DISJUNCTIVE_CONDITIONS_REMOVING, ("DISJUNCTIVE_CONDITIONS",)),
+                                 (CompilationKind.NEGATIVE_CONDITIONS_REMOVING, ("NEGATIVE_CONDITIONS",))):
+        if engine.supports(kind):
             break
-        if any(f in problem.kind.features for f in feature):
-            with Compiler(problem_kind=problem.kind, compilation_kind=kind) as compiler:
-                res = compiler.compile(problem, kind)
+        if any(f in kind.features for f in feature):
+            with Compiler(problem_kind=kind, compilation_kind=compilation) as compiler:
+                res = compiler.compile(problem, compilation)
             chain.append(res)
             problem = res.problem
-    if not engine.supports(problem.kind) and problem.quality_metrics:
+            kind = problem.kind
+    if not engine.supports(kind) and problem.quality_metrics:
         log.warning("the task planner '%s' ignores action costs: its plans may not be cheapest", engine.name)
         problem = problem.clone()
         problem.clear_quality_metrics()
-    return problem, chain
+        kind = problem.kind
+    return problem, chain, kind
 
 
 @functools.cache
@@ -201,15 +210,14 @@ def _sparse_problem_class():
 
 def _solve(engine_name, params, problem, timeout):
     from unified_planning.engines import PlanGenerationResultStatus as S
-    from unified_planning.shortcuts import OneshotPlanner
 
     # Fast Downward's driver writes output.sas into the working directory: concurrent runs in one
     # folder read each other's tasks. Each call gets a private folder.
     with tempfile.TemporaryDirectory(prefix="interlayer-fd-") as scratch, contextlib.chdir(scratch), \
-            OneshotPlanner(name=engine_name, params=params or None) as engine:
-        compiled, chain = _compile_for(engine, problem)
-        if not engine.supports(compiled.kind):
-            return "error", None, f"the engine '{engine_name}' cannot handle this problem's features ({sorted(compiled.kind.features)})"
+            _engine(engine_name, params) as engine:
+        compiled, chain, kind = _compile_for(engine, problem)
+        if not engine.supports(kind):
+            return "error", None, f"the engine '{engine_name}' cannot handle this problem's features ({sorted(kind.features)})"
         if not chain:
             compiled.__class__ = _sparse_problem_class()  # our own clone: only the PDDL writer reads it
         res = engine.solve(compiled, timeout=timeout)
