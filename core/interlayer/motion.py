@@ -160,9 +160,13 @@ class MotionPlanner:
             relaxed = self._solve(query, True, limit)
         if relaxed is None:
             return MotionPlan(False, reason="no path even with movable objects ignored", time=time.perf_counter() - t0)
+        dense = space.densify(relaxed)
         blockers: set = set()
-        for q in space.densify(relaxed):
+        for q in dense:
             blockers |= query.movables_at(q)
+        if not blockers and start_ok and goal_ok and space.within_bounds(goal) and all(map(query.is_valid, dense)):
+            # the first search ran out of time; the relaxed one found a path that avoids the movables too
+            return MotionPlan(True, tuple(np.asarray(p, float) for p in relaxed), time=time.perf_counter() - t0)
         reason = "blocked by " + ", ".join(sorted(blockers)) if blockers else "planner found no path in time"
         return MotionPlan(False, obstructions=tuple(sorted(blockers)), reason=reason, time=time.perf_counter() - t0)
 
