@@ -130,7 +130,7 @@ def test_front_approach_keeps_the_base_on_the_near_side_and_the_target_reachable
     """problem.approach = "front": base poses stay on the table's near long side, and the target is
     an object graspable from there when nothing is in the way (so the scene is solvable)."""
     from interlayer.domain import GroundStep
-    from interlayer_pr2.clutter import ClutterSampler
+    from interlayer_clutter.samplers import ClutterSampler
 
     for seed in (1, 4):
         problem = _problem(["problem.objects=40", f"planner.seed={seed}", "problem.approach=front"])

@@ -72,7 +72,7 @@ def to_toml(config: dict) -> str:
 KEYS = ["planner.task", "planner.motion", "planner.seed", "planner.time_limit", "planner.task_timeout",
         "planner.max_traj_count", "planner.max_refine_attempts", "planner.translators", "problem.domain",
         "problem.file", "problem.obstructions", "problem.s_occupied", "problem.objects", "problem.clutter",
-        "problem.target_radius", "problem.grasps", "problem.goal", "problem.scene", "pose_generators.pick",
+        "problem.target_radius", "problem.grasps", "problem.goal", "problem.approach", "pose_generators.pick",
         "task_planner.fast-downward", "task_planner.pyperplan", "motion_planner.time_limit", "motion_planner.ompl"]
 VALUES = st.one_of(
     st.booleans(), st.integers(-2**70, 2**70), st.sampled_from([0, -1, 1, 2, 5, 6, 40, 41, 10**9]),

@@ -12,7 +12,6 @@ drawer's front plate meets it (``block``): (O) block >= need + MARGIN_O, (N) blo
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import numpy as np
 
 from interlayer.refine import Failure, StepOutcome
 from interlayer_pr2.world import PADDING, PR2Geometry, _failure, _holding
@@ -45,8 +44,6 @@ class DrawerGeometry(PR2Geometry):
             self.stats.add_time("collision_checking", acc[0])
 
     def _open_drawer(self, step, world, cand, motion, acc):
-        from interlayer_pinocchio import TUCKED_ARMS
-
         arm = step.args[1]
         approach, pull, retreat = cand.waypoints
         group, segs, w = f"{arm}_arm", [], world

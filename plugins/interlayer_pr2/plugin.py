@@ -3,25 +3,24 @@ import math
 
 from interlayer import hookimpl
 
-PARAMS = {"scene": "cubby", "goal": "hold", "grasps": ["side"], "target_radius": 0.035, "clutter": 0, "objects": 15,
-          "approach": "free",
-          # trajectory timing (TOPP-RA); arm velocities are the URDF's limits
-          "arm_acceleration": 1.5, "base_velocity": [0.5, 0.5, 1.0], "base_acceleration": [0.5, 0.5, 1.0]}
+# trajectory timing (TOPP-RA); arm velocities are the URDF's limits. PR2 domains may accept these keys too.
+TIMING = {"arm_acceleration": 1.5, "base_velocity": [0.5, 0.5, 1.0], "base_acceleration": [0.5, 0.5, 1.0]}
+PARAMS = {"goal": "hold", "grasps": ["side"], "target_radius": 0.035, "clutter": 0, **TIMING}
 
 
 def make_problem(params, seed):
     problem = _make_problem(params, seed)
-    problem.geometry.layout.extra.update(_timing(params))
+    problem.geometry.layout.extra.update(timing(params))
     return problem
 
 
-def _timing(params):
+def timing(params):
     """The timing keys, checked: positive numbers (three for the base: x, y, theta)."""
     from interlayer.errors import UserError
 
     out = {}
     for key, n in (("arm_acceleration", 1), ("base_velocity", 3), ("base_acceleration", 3)):
-        value = params.get(key, PARAMS[key])
+        value = params.get(key, TIMING[key])
         items = value if n > 1 and isinstance(value, list) else [value]
         if len(items) != n or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < math.inf
                                   for v in items):
@@ -34,14 +33,6 @@ def _timing(params):
 def _make_problem(params, seed):
     from interlayer.domain import Problem
     from interlayer.errors import UserError
-
-    scene = params.get("scene", "cubby")
-    if scene == "clutter":
-        from .clutter import make_clutter_problem
-
-        return make_clutter_problem(params, seed)
-    if scene != "cubby":
-        raise UserError(f"problem.scene must be \"cubby\" (pr2_pick) or \"clutter\" (Clutter-N), got {scene!r}.")
 
     from .domain import DOMAIN
     from .scene import make_layout
@@ -90,28 +81,15 @@ def _make_problem(params, seed):
 @hookimpl
 def interlayer_register_domains(registry):
     registry.add("pr2", make_problem,
-                 "a PR2 picks a cylinder from a cubby whose mouth another cylinder blocks (Fig. 3 actions, both arms); "
-                 "scene = \"clutter\": the paper's cluttered table (Clutter-N, objects = N)",
+                 "a PR2 picks a cylinder from a cubby whose mouth another cylinder blocks (Fig. 3 actions, both arms)",
                  params=PARAMS, drawing="interlayer_pr2.draw")
 
 
 @hookimpl
 def interlayer_register_pose_generators(registry):
-    from . import clutter, generators
+    from . import generators
 
     registry.add("pr2:move_base", generators.move_base, "base poses in an annulus around the object or put-down spot")
     registry.add("pr2:pick", generators.pick, "side (and top) grasps with pre-grasp and raise waypoints, by IK")
     registry.add("pr2:place", generators.place, "the put-down spot chosen by move_base and nearby variants, by IK")
-    registry.add("pr2c:pick", clutter.ClutterSampler, "clutter: base pose + side grasp (move_base folded in), fewest objects in the way first")
-    registry.add("pr2c:place", clutter.ClutterSampler, "clutter: a free table spot far from the target and others + base pose, by IK")
 
-
-@hookimpl
-def interlayer_load_problem(path, params, seed):
-    """pybullet-planning JSON problem files (bodies / robots / task); None for anything else."""
-    from .clutter import load_pybullet_json, looks_like_pybullet_json
-
-    data = looks_like_pybullet_json(path)
-    if data is None:
-        return None
-    return load_pybullet_json(path, data, params, seed)

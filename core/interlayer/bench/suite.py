@@ -21,7 +21,6 @@ Configs and overrides are all the core knows about a row: the domain comes from 
 from __future__ import annotations
 
 import itertools
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 

@@ -1,0 +1,31 @@
+"""Registers Clutter-N (the paper's cluttered table) and its pose generators."""
+from interlayer import hookimpl
+
+PARAMS = {"objects": 15, "approach": "free"}
+
+
+def make_problem(params, seed):
+    from interlayer_pr2.plugin import timing
+
+    from .scene import make_clutter_problem
+
+    problem = make_clutter_problem(params, seed)
+    problem.geometry.layout.extra.update(timing(params))
+    return problem
+
+
+@hookimpl
+def interlayer_register_domains(registry):
+    from interlayer_pr2.plugin import TIMING
+
+    registry.add("clutter", make_problem,
+                 "the paper's cluttered table (Clutter-N): a PR2 must hold one of N cylinders, clearing those in the way",
+                 params={**PARAMS, **TIMING}, drawing="interlayer_pr2.draw")
+
+
+@hookimpl
+def interlayer_register_pose_generators(registry):
+    from .samplers import ClutterSampler
+
+    registry.add("clutter:pick", ClutterSampler, "clutter: base pose + side grasp (move_base folded in), fewest objects in the way first")
+    registry.add("clutter:place", ClutterSampler, "clutter: a free table spot far from the target and others + base pose, by IK")

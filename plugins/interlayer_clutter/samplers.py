@@ -1,0 +1,277 @@
+"""Clutter's pose generators: pick and place with move_base folded in (see domain.py)."""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+from interlayer.refine import Candidate, EpochState
+from interlayer_pr2.scene import REST_GAP, base_limits, table_top
+from interlayer_pr2.world import ARMS, pose4
+
+
+def _base_near(geometry, x, y, rng, reach=(0.55, 0.95)):
+    """A base pose facing (x, y) from outside the table, sampled around the table's sides."""
+    from interlayer_pr2.generators import wrap
+
+    xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
+    (lx, hx), (ly, hy) = base_limits(geometry.layout)
+    for _ in range(20):
+        r, a = rng.uniform(*reach), rng.uniform(-math.pi, math.pi)
+        bx, by = x + r * math.cos(a), y + r * math.sin(a)
+        if xmin - 0.33 < bx < xmax + 0.33 and ymin - 0.33 < by < ymax + 0.33:
+            continue  # the base would stand under the table
+        if not (lx <= bx <= hx and ly <= by <= hy):
+            continue
+        yaw = math.atan2(y - by, x - bx) + rng.uniform(-0.35, 0.35)
+        return (float(bx), float(by), float(wrap(yaw)))
+    return None
+
+
+def _coarse(a, b, n=8):
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return [a + (b - a) * k / n for k in range(1, n + 1)]
+
+
+def _movables_on(geometry, world, arm, path, ignore, gripper="open"):
+    """Movable objects the arm (gripper open) touches at the waypoints of ``path``."""
+    w = world.with_gripper(arm, gripper) if gripper else world
+    hit = set()
+    for v in path:
+        q = geometry.sync(w.with_arm(arm, v))
+        hit |= geometry.cw.colliding_movables(q)
+    return hit - set(ignore) - {o for o, _ in world.held.values()}
+
+
+class ClutterSampler(EpochState):
+    """Clutter's pick and place generators and what they share within one epoch: grasp candidates
+    sampled once per (object, arm, object pose) and re-ranked in each world, and the target's best
+    approach corridors that put-downs keep clear of. The loop makes a fresh instance at every epoch,
+    so a reset discards both and samples anew."""
+
+    def __init__(self, seed):
+        super().__init__(seed)
+        self.grasps: dict = {}  # (obj, arm, pose) -> candidates
+        self.misses: dict = {}  # (obj, arm, pose) -> fruitless searches so far
+        self.corridors: dict = {}  # arm -> [(base, approach xy points)] of the target's best grasps
+
+    def __call__(self, problem, step, world, rng):
+        return self.pick(problem, step, world, rng) if step.action == "pick" else self.place(problem, step, world, rng)
+
+    def pick(self, problem, step, world, rng, limit: int = 5):
+        """Base pose + side grasp of step's object; candidates ordered by how many objects their
+        approach and raise touch (fewest first: fewer obstructions to learn and clear).
+
+        The candidates are stable within the epoch: sampled once per (object, arm, object pose), then
+        re-ranked in each call's world. An obstruction learned for the best candidate thus stays true
+        of it, and once the task plan has cleared those blockers the same candidate comes first again
+        with nothing in its way (fresh samples would bring fresh blockers)."""
+        obj, arm = step.args[0], step.args[1]
+        bp_ref, gp_ref = step.args[3], step.args[4]
+        geometry = problem.geometry
+        if world.holder(obj) is not None or world.held.get(arm):
+            return
+        ranked = self.ranked_grasps(problem, world, obj, arm)
+        if obj == geometry.layout.target:  # the put-down sampler keeps clear of its best approaches
+            self.corridors[arm] = [(c[2], c[6]) for c in ranked[:3]]
+        for nhit, _, base, kind, T, wps, _ in ranked[:limit]:
+            yield Candidate((base, *wps), {bp_ref: list(base), gp_ref: T.tolist()},
+                            f"{kind} grasp from base {_fmt(base)} ({nhit[0]} objects on the approach, {nhit[1]} on the way)")
+
+    def grasp_candidates(self, problem, world, obj, arm, tries: int = 40):
+        """(base, kind, T, waypoints, tool xy path) candidates for picking obj with arm where it stands;
+        static checks only (IK, fixed obstacles), so they hold in every world with obj at this pose."""
+        from interlayer_pr2.generators import _bearing, _problem_grasps, _waypoints, check_graspable, grasp_poses
+
+        geometry = problem.geometry
+        P = world.objects[obj]
+        key = (obj, arm, tuple(np.round(P[:3, :4].ravel(), 4)))
+        if key in self.grasps:
+            return self.grasps[key]
+        check_graspable(problem, obj)
+        misses = self.misses.get(key, 0)
+        rng = self.rng_for(*key, misses)  # a function of the epoch and the question only
+        x, y = P[0, 3], P[1, 3]
+        kinds = _problem_grasps(problem, obj)
+        target = obj == geometry.layout.target
+        want = 12 if target else 6
+        n_bases = 3 * tries if target else tries
+        found = []
+        from interlayer_pinocchio import TUCKED_ARMS
+
+        # the other arm tucked and nothing held: the candidates must not depend on the world they were asked in
+        w0 = replace(world, held={}, arms={a: tuple(TUCKED_ARMS[a]) for a in ARMS}, grippers={a: "closed" for a in ARMS})
+        for i in range(n_bases + 2 * tries):
+            if i >= n_bases and found:
+                break  # past the first bases, only search on while nothing at all was found
+            base = _base_near(geometry, x, y, rng)
+            if base is None or not _base_free(geometry, w0, base):
+                continue
+            w = replace(w0, base=base)
+            for kind, T in grasp_poses(geometry, obj, P, _bearing(base, x, y), kinds, rng, n_side=2):
+                wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,))
+                if wps is None:
+                    continue
+                wps = _with_hover(geometry, w, arm, T, wps, rng, obj)
+                found.append((base, kind, T, wps, _reach_xy(base, T)))
+                break
+            if len(found) >= want:
+                break
+        if found:
+            self.grasps[key] = found
+        else:
+            self.misses[key] = misses + 1  # the next call searches with other samples
+        return found
+
+    def ranked_grasps(self, problem, world, obj, arm):
+        """The candidates ranked in ``world``: ((approach hits, transit-line hits), index, base, kind,
+        T, waypoints, footprint), fewest objects in the way first."""
+        geometry = problem.geometry
+        out = []
+        for idx, (base, kind, T, wps, xy) in enumerate(self.grasp_candidates(problem, world, obj, arm)):
+            if not _base_free(geometry, world, base):
+                continue
+            w = replace(world, base=base)
+            with geometry.stats.timer("collision_checking"):
+                # exactly the refinement's first check: the approach (hover descent included), densified
+                hit = geometry._movables_on_line(w.with_gripper(arm, "open"), arm, wps[0], [0.0]) - {obj}
+                hit |= _movables_on(geometry, w, arm, list(wps[1]), (obj,))
+                # a rough guess at the transit's sweep: the straight joint-space line to the pre-grasp
+                sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], wps[0][0]), (obj,), gripper=None)
+            out.append(((len(hit), len(sweep)), idx, base, kind, T, wps, xy))
+        out.sort(key=lambda f: (f[0], f[1]))
+        return out
+
+    def spot_score(self, geometry, world, target, x, y):
+        """Larger is better: near the table's edge (few objects between the arm and the spot, and an object
+        there stands in few other approaches), far from the target and clear of other objects, and never
+        in the corridor the arm will reach through for the target (its best grasps, see pick)."""
+        xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
+        edge = min(x - xmin, xmax - x, y - ymin, ymax - y)
+        d_obj = min((math.hypot(x - Q[0, 3], y - Q[1, 3]) for Q in world.objects.values()), default=1.0)
+        Tt = world.objects.get(target)
+        d_t = math.hypot(x - Tt[0, 3], y - Tt[1, 3]) if Tt is not None else 1.0
+        penalty = 0.0
+        for cands in self.corridors.values():
+            for rank, (_, xy) in enumerate(cands):
+                if any(math.hypot(x - a, y - b) < CORRIDOR for a, b in xy):
+                    penalty = max(penalty, 2.0 if rank == 0 else 0.5)
+        return min(d_obj, 0.25) + 0.5 * min(d_t, 0.6) - 1.5 * edge - penalty
+
+    def place(self, problem, step, world, rng, limit: int = 4, tries: int = 80):
+        """A free table spot (far from the target and other objects first), a base pose to reach it, and
+        the lowering / retreat arm paths."""
+        from interlayer_pr2.generators import LIFT, PRE_GRASP, _line, _putdown, trans
+
+        obj, arm = step.args[0], step.args[1]
+        bp_ref, pd_ref = step.args[3], step.args[4]
+        geometry = problem.geometry
+        if world.holder(obj) != arm:
+            return
+        G = world.held[arm][1]
+        spots = []
+        geometry.sync(world)
+        for x, y, z in _table_spots(geometry, world, obj, rng, tries):
+            spots.append((self.spot_score(geometry, world, geometry.layout.target, x, y), x, y, z))
+        spots.sort(key=lambda s: -s[0])
+        found = []
+        for rank, (_, x, y, z) in enumerate(spots):
+            if rank >= 3 * limit and found:
+                break  # past the best spots, only search on while nothing at all was found
+            for _ in range(4 if rank < 3 * limit else 8):
+                base = _base_near(geometry, x, y, rng)
+                if base is None or not _base_free(problem.geometry, world, base):
+                    continue
+                P, T = _putdown(G, x, y, z, math.atan2(y - base[1], x - base[0]) + rng.uniform(-0.3, 0.3))
+                w = replace(world, base=base)
+                put = geometry.ik(w, arm, T, rng, attempts=4)
+                if put is None:
+                    continue
+                lower = _line(geometry, w, arm, T, lambda d, T=T: trans(0, 0, d) @ T, LIFT, put, rng)
+                back = _line(geometry, w.with_gripper(arm, "open"), arm, T, lambda d, T=T: T @ trans(-d, 0, 0), PRE_GRASP, put,
+                             rng, gripper="open")
+                if lower is None or back is None:
+                    continue
+                with geometry.stats.timer("collision_checking"):
+                    hit = _movables_on(geometry, w, arm, lower, (), gripper=None)
+                    hit |= _movables_on(geometry, w, arm, back, ())
+                    sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], lower[-1]), (), gripper=None)
+                found.append(((len(hit), len(sweep)), rank, base, x, y, P, T, lower, back))
+                break
+            if len(found) >= limit or (found and found[-1][0] == (0, 0) and len(found) >= 2):
+                break
+        found.sort(key=lambda f: (f[0], f[1]))
+        for nhit, _, base, x, y, P, T, lower, back in found:
+            yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])),
+                            {bp_ref: list(base), pd_ref: T.tolist(), "tloc": (obj, P), "object_pose": P.tolist()},
+                            f"{obj} at {_fmt((x, y))} from base {_fmt(base)} ({nhit[0]} + {nhit[1]} objects in the way)")
+
+
+def _reach_xy(base, T, step=0.05):
+    """Points along the arm's footprint over the table: from the tool back towards the base."""
+    tx, ty = T[0, 3], T[1, 3]
+    bx, by = base[0], base[1]
+    d = math.hypot(bx - tx, by - ty)
+    n = max(1, int(d / step))
+    return [(tx + (bx - tx) * k / n, ty + (by - ty) * k / n) for k in range(n + 1)]
+
+
+HOVER = 0.18  # the pre-grasp is approached from this far above: over the other cylinders' tops
+
+
+def _with_hover(geometry, world, arm, T, wps, rng, obj):
+    """Prefix the approach with a vertical descent from HOVER above the pre-grasp, so that the free
+    transit ends above the clutter and only the descent and the approach run between objects
+    (obstructions learned from a failure then name the objects really in the way)."""
+    from interlayer_pr2.generators import _line
+    from interlayer_pr2.world import PRE_GRASP, trans
+
+    approach, lift = wps
+    pre_T = T @ trans(-PRE_GRASP, 0, 0)
+    down = _line(geometry, world.with_gripper(arm, "open"), arm, pre_T, lambda d: trans(0, 0, d) @ pre_T, HOVER,
+                 approach[0], rng, (obj,), "open")
+    if down is None or not geometry.static_path_ok(world.with_gripper(arm, "open"), arm, down, (obj,)):
+        return wps
+    return tuple(reversed(down)) + tuple(approach[1:]), lift
+
+
+CORRIDOR = 0.15  # m: put-down spots keep this far from the footprint of the target's best approaches
+
+
+def _base_free(geometry, world, base):
+    from interlayer_pr2.generators import _base_free as free
+
+    return free(geometry, world, base)
+
+
+def _table_spots(geometry, world, obj, rng, tries, want=12):
+    """Upright resting poses of obj anywhere on the table, clear of fixed obstacles and >= 6 cm
+    (edge to edge) from every other object. With 40 objects on the table such spots are rare: many
+    points are drawn at once (vectorized), and when fewer than ``want`` pass, the clearance shrinks
+    (4, then 2.5 cm) for the remaining ones."""
+    o = geometry.specs[obj]
+    xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
+    m = o.size[0] + 0.02
+    z = table_top(geometry.layout) + o.height / 2 + REST_GAP
+    n = max(tries, 40) * 25
+    far = min(xmax - m, base_limits(geometry.layout)[0][1] + 0.95)  # beyond the arm's reach from any base pose
+    pts = np.column_stack([rng.uniform(xmin + m, far, n), rng.uniform(ymin + m, ymax - m, n)])
+    others = np.array([Q[:2, 3] for Q in world.objects.values()]).reshape(-1, 2)
+    d = np.min(np.linalg.norm(pts[:, None, :] - others[None, :, :], axis=2), axis=1) if len(others) else np.full(n, 9.0)
+    out = 0
+    for gap in (0.06, 0.04, 0.025):
+        ok = (d >= 2 * o.size[0] + gap)
+        for x, y in pts[ok][:tries]:
+            with geometry.stats.timer("collision_checking"):
+                hits = geometry.cw.objects_overlap(obj, pose4(float(x), float(y), z, 0.0))
+            if hits & geometry.fixed:
+                continue
+            out += 1
+            yield float(x), float(y), z
+        if out >= want:
+            return
+        d = np.where(ok, -1.0, d)  # already offered
+
+
+def _fmt(p):
+    return "(" + ", ".join(f"{v:.2f}" for v in p) + ")"
