@@ -185,3 +185,17 @@ def test_validator_accepts_the_carry_and_rejects_a_dropped_rider(tray_run):
     seg = next(s for s in trajectory["steps"][0]["segments"] if s.get("group") == "left_arm")
     arm["steps"][1]["segments"].insert(0, copy.deepcopy(seg))
     assert "moves while both hands carry the tray" in _check(geometry, plan, arm)[0]
+
+
+@pytest.mark.slow
+def test_dinner_example_solves_with_the_tray_and_validates(tmp_path):
+    """The example end to end (~45 s): the optimal Dinner-4 plan uses the tray, costs 118, and the
+    independent validator accepts its trajectory."""
+    from interlayer import api
+
+    from conftest import ROOT
+
+    res = api.solve(str(ROOT / "examples" / "dinner.toml"))
+    assert res.solved and res.plan_cost == 118 and any(s.action == "pick_tray" for s in res.plan)
+    api.write_outputs(res, tmp_path)
+    assert api.validate(tmp_path) == []
