@@ -107,8 +107,6 @@ def test_side_costs_make_cross_reaching_dearer(host):
                for x, y in (("left", "right"), ("right", "left")))
     assert res.status == "solved" and res.cost == model.cost(res.plan) == best
     assert "handoff" in {a.name for a in make_domain(handoff=True).actions}
-    with pytest.raises(UserError, match="handoff"):
-        _problem(2, handoff=True)
 
 
 @pytest.fixture(scope="module")
@@ -185,6 +183,53 @@ def test_validator_accepts_the_carry_and_rejects_a_dropped_rider(tray_run):
     seg = next(s for s in trajectory["steps"][0]["segments"] if s.get("group") == "left_arm")
     arm["steps"][1]["segments"].insert(0, copy.deepcopy(seg))
     assert "moves while both hands carry the tray" in _check(geometry, plan, arm)[0]
+
+
+@pytest.fixture(scope="module")
+def handoff_run(host):
+    """Dinner-2 with handoff: the right hand picks a cup from the side table and hands it to the left
+    (pick, handoff refined for real, with the problem's own generators)."""
+    from interlayer_dinner import generators
+
+    problem = _problem(2, seed=0, handoff=True)
+    geometry = problem.geometry
+    cup = next(n for n, k in geometry.kinds.items() if k == "cup")
+    motion = host["motion_planners"].get("ompl:RRTConnect").factory({"time_limit": 2.0})
+    motion.seed = 0
+    plan = [GroundStep("pick", (cup, "right", "side", "room_a")), GroundStep("handoff", (cup, "right", "left"))]
+    gens = {"pick": generators.pick, "handoff": generators.handoff}
+    world, outcomes = geometry.initial_world(), []
+    for step in plan:
+        out = None
+        for cand in gens[step.action](problem, step, world, np.random.default_rng(1)):
+            out = geometry.refine_step(step, world, cand, motion)
+            if out.ok:
+                break
+        assert out is not None and out.ok, (step, out and out.failure)
+        outcomes.append(out)
+        world = out.world
+    return geometry, cup, plan, outcomes, geometry.trajectory_json(plan, outcomes)
+
+
+def test_handoff_passes_the_object_to_the_other_hand_and_validates(handoff_run):
+    from interlayer_pinocchio import TUCKED_ARMS
+
+    geometry, cup, plan, outcomes, trajectory = handoff_run
+    after = outcomes[1].world
+    assert after.holder(cup) == "left" and "right" not in after.held and cup not in after.objects
+    assert np.allclose(after.arms["right"], TUCKED_ARMS["right"]) and after.grippers["right"] == "closed"
+    kinds = [s["kind"] for s in trajectory["steps"][1]["segments"]]
+    assert "handover" in kinds and kinds.index("handover") < len(kinds) - 1
+    assert _check(geometry, plan, trajectory) == []
+    far = copy.deepcopy(trajectory)  # the left hand claims the cup where the right hand does not hold it
+    seg = next(s for s in far["steps"][1]["segments"] if s["kind"] == "handover")
+    seg["grasp"][2][3] += 0.05
+    assert "is not at the left gripper" in _check(geometry, plan, far)[0]
+    early = copy.deepcopy(trajectory)  # the handover before the left hand has come to the cup
+    segs = early["steps"][1]["segments"]
+    k = next(i for i, s in enumerate(segs) if s["kind"] == "handover")
+    segs.insert(2, segs.pop(k))
+    assert _check(geometry, plan, early)
 
 
 @pytest.mark.slow

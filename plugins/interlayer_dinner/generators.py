@@ -13,6 +13,9 @@ the lower object): only the base pose, the tool's heading and the grasp kind are
 * ``dinner:pick_tray``: base poses facing the tray's near edge, both hands' approaches by IK.
 * ``dinner:place_tray``: the base pose that puts the carried tray at the table's tray spot (jittered)
   and both hands' retreats.
+* ``dinner:handoff``: where the robot stands, a hand-over pose of the object in front of its chest
+  (jittered), the holding hand's IK there, the other hand's grasp and straight approach, the holding
+  hand's retreat.
 """
 from __future__ import annotations
 
@@ -215,3 +218,47 @@ def place_tray(problem, step, world, rng, limit: int = 4, tries: int = 30):
             if n >= limit:
                 return
 
+
+
+HANDOVER = (0.55, 0.0, 1.05)  # the object's centre in the base frame: in front of the chest, above the tables
+HANDOVER_LINE = 0.10  # approach and retreat length at the hand-over (PRE_GRASP's 0.20 rarely has IK so close)
+
+
+def handoff(problem, step, world, rng, limit: int = 4, tries: int = 30):
+    geometry = problem.geometry
+    obj, src, dst = step.args
+    if world.holder(obj) != src or world.held.get(dst):
+        return
+    G = world.held[src][1]
+    B, yaw = base_matrix(world.base), world.base[2]
+    s = 1.0 if dst == "left" else -1.0  # the holding hand points towards the receiving side, which reaches across
+    top_held = abs((G[:3, :3].T @ np.array([1.0, 0, 0]))[2]) > 0.7  # the holding hand covers the object's top
+    kinds = ("side",) if top_held else tuple(k for k in _problem_grasps(problem, obj) if k in ("side", "top"))
+    n = 0
+    for k in range(tries):
+        d = np.zeros(3) if k == 0 else rng.uniform(-0.08, 0.08, size=3)
+        x, y, z = (B @ np.array([*(np.add(HANDOVER, d)), 1.0]))[:3]
+        P, T = _putdown(G, x, y, z, yaw + s * rng.uniform(0.2, 0.8))
+        hold = geometry.ik(world, src, T, rng, movables=True, seed=world.arms[src], attempts=4)
+        if hold is None:
+            continue
+        w = world.with_arm(src, hold)
+        # the receiving hand comes from its own side
+        for kind, Tg in grasp_poses(geometry, obj, P, yaw - s * rng.uniform(0.9, 1.5), kinds, rng, n_side=2):
+            grasp = geometry.ik(w, dst, Tg, rng, movables=True, ignore=(obj,), gripper="open", attempts=4)
+            line = grasp is not None and _line(geometry, w, dst, Tg, lambda e, Tg=Tg: Tg @ trans(-e, 0, 0),
+                                               HANDOVER_LINE, grasp, rng, (obj,), "open")
+            if not line:
+                continue
+            handed = replace(w.with_arm(dst, grasp), held={dst: (obj, np.linalg.inv(Tg) @ P)},
+                             grippers={src: "open", dst: "closed"})
+            back_at = (lambda e: trans(0, 0, e) @ T) if top_held else (lambda e: T @ trans(-e, 0, 0))
+            back = _line(geometry, handed, src, T, back_at, HANDOVER_LINE, hold, rng, (obj,), "open")
+            if not back:
+                continue
+            n += 1
+            yield Candidate((tuple(hold), tuple(reversed(line)), tuple(back)), {},
+                            f"{obj} handed over at {_fmt((x, y, z))}, {kind} grasp by the {dst} hand")
+            if n >= limit:
+                return
+            break

@@ -18,9 +18,6 @@ def make_problem(params, seed):
     for key in ("handoff", "side_costs"):
         if not isinstance(params[key], bool):
             raise UserError(f"problem.{key} must be true or false, got {params[key]!r}.")
-    if params["handoff"]:
-        raise UserError("problem.handoff = true is not available yet: the handoff action has a task-level model but "
-                        "no refinement (both arms moving together); leave it false.")
     try:
         layout = make_layout(seed, n)
     except ValueError as exc:
@@ -66,3 +63,5 @@ def interlayer_register_pose_generators(registry):
     registry.add("dinner:pick_tray", generators.pick_tray, "base pose facing the tray + both hands on its near edge")
     registry.add("dinner:place_tray", generators.place_tray,
                  "the base pose that puts the carried tray at its spot on the table, and both hands' retreats")
+    registry.add("dinner:handoff", generators.handoff,
+                 "a hand-over pose in front of the robot, the other hand's grasp there (IK) and the first hand's retreat")

@@ -111,7 +111,32 @@ def event(geometry, world, seg, at):
         if geometry.in_collision(w):
             return world, f"{at}: the tray is set down into a collision"
         return w, ""
+    if kind == "handover":
+        return handover(geometry, world, seg, at)
     return world, f"{at}: unknown segment kind {kind!r}"
+
+
+def handover(geometry, world, seg, at):
+    """One hand closes on the object the other holds (where it holds it), the other opens."""
+    robot = geometry.robot
+    obj, src, dst = seg.get("object"), seg.get("from"), seg.get("to")
+    if world.held.get(src, (None,))[0] != obj or src == dst:
+        return world, f"{at}: hands {obj} over from the {src} arm, which holds {world.held.get(src, ('nothing',))[0]}"
+    if dst in world.held or world.grippers.get(dst) != "open":
+        return world, f"{at}: the {dst} gripper takes {obj} but is not open and empty"
+    q = geometry.config(world)
+    G = np.asarray(seg.get("grasp"), float)
+    if not _pose_close(robot.tool_pose(q, dst) @ G, robot.tool_pose(q, src) @ world.held[src][1]):
+        return world, f"{at}: {obj} is not at the {dst} gripper (the claimed grasp does not put it where the {src} hand holds it)"
+    if not _inside(geometry.specs[obj], np.linalg.inv(G)[:3, 3]):
+        return world, f"{at}: the {dst} tool frame is outside {obj}: not a grasp"
+    if geometry.grasp_width(obj, G) > robot.max_gripper_opening:
+        return world, f"{at}: {obj} is wider than the {dst} gripper opens"
+    w = replace(world, held={dst: (obj, G), **{a: v for a, v in world.held.items() if a != src}},
+                grippers={**world.grippers, dst: "closed", src: "open"})
+    if geometry.in_collision(w):
+        return world, f"{at}: the handover of {obj} collides"
+    return w, ""
 
 
 def goal(geometry, world) -> list:

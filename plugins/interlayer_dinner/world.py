@@ -6,7 +6,8 @@ frame) both hands stay closed around the tray's near edge and only the base move
 riders move rigidly with the base, are checked against everything else at every base state, and come
 to rest again when the tray is set down. A place-type step (place, put_on_tray, stack) drives to the
 sampled base pose (OMPL, SE(2)) and puts the object down at its fixed place; a pick-type step (pick,
-take_off_tray, unstack) drives and grasps; ``go`` drives through the doorway to the other room.
+take_off_tray, unstack) drives and grasps; ``go`` drives through the doorway to the other room;
+``handoff`` passes the object from one hand to the other where the robot stands.
 """
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ from interlayer.motion import MotionQuery
 from interlayer.refine import Failure, StepOutcome
 from interlayer_pinocchio import TUCKED_ARMS
 from interlayer_pr2.scene import REST_GAP
-from interlayer_pr2.world import CARRY, PADDING, PR2Geometry, World, _failure, pose4, rz, trans
+from interlayer_pr2.world import CARRY, PADDING, PR2Geometry, World, _failure, _holding, pose4, rz, trans
 
 from .scene import TOP, TRAY
 
@@ -206,6 +207,8 @@ class DinnerGeometry(PR2Geometry):
                 return self._pick_tray(world, candidate, motion, acc)
             if action == "place_tray":
                 return self._place_tray(world, candidate, motion, acc)
+            if action == "handoff":
+                return self._handoff(step, world, candidate, motion, acc)
         finally:
             self.stats.add_time("collision_checking", acc[0])
         raise ValueError(step.action)
@@ -282,6 +285,49 @@ class DinnerGeometry(PR2Geometry):
                 return _failure(res, f"tray tuck ({arm})")
             w = w.with_arm(arm, goal)
         return StepOutcome(True, w, segs)
+
+    def _handoff(self, step, world, cand, motion, acc):
+        """The holding hand presents the object, the other hand approaches and closes on it, the first
+        opens, retreats and tucks, the receiving arm goes to its carry posture."""
+        obj, src, dst = step.args
+        hold, approach, retreat = cand.waypoints
+        segs, w = [], world
+        res = self._plan(motion, self.arm_query(w, src, w.arms[src], hold, "handoff present", acc), "transit",
+                         f"{src}_arm", segs, _holding(w), w, acc)
+        if not res.ok:
+            return _failure(res, "handoff present")
+        w = w.with_arm(src, hold)
+        res = self._plan(motion, self.arm_query(w, dst, w.arms[dst], approach[0], "handoff transit", acc), "transit",
+                         f"{dst}_arm", segs, _holding(w), w, acc)
+        if not res.ok:
+            return _failure(res, "handoff transit")
+        w = w.with_arm(dst, approach[0]).with_gripper(dst, "open")
+        if self.in_collision(w):
+            return self._stuck(w, "opening the receiving gripper", obj)
+        segs.append({"kind": "gripper", "arm": dst, "command": "open"})
+        res = self._line(w, dst, approach, "approach", segs, acc)
+        if not res.ok:
+            return _failure(res, "handoff approach")
+        w = w.with_arm(dst, approach[-1])
+        q = self.sync(w)
+        G = np.linalg.inv(self.robot.tool_pose(q, dst)) @ self.object_pose(w, obj, q)
+        w = replace(w, held={dst: (obj, G), **{a: v for a, v in w.held.items() if a != src}},
+                    grippers={**w.grippers, dst: "closed", src: "open"})
+        if self.in_collision(w):
+            return self._stuck(w, "handing over", obj)
+        segs.append({"kind": "handover", "object": obj, "from": src, "to": dst, "grasp": G.tolist()})
+        out = self.retreat_and_tuck(motion, w, src, f"{src}_arm", retreat, "handoff", segs, acc)
+        if not out.ok:
+            return out
+        w = out.world
+        carry = self.carry(w, dst, np.random.default_rng(0))
+        if carry is None:
+            return StepOutcome(False, failure=Failure("ik", (), "no collision-free carry posture after the handoff"))
+        res = self._plan(motion, self.arm_query(w, dst, w.arms[dst], carry, "handoff carry", acc), "transit",
+                         f"{dst}_arm", segs, _holding(w), w, acc)
+        if not res.ok:
+            return _failure(res, "handoff carry")
+        return StepOutcome(True, w.with_arm(dst, carry), segs)
 
     def raised(self, world, arm):
         """An arm vector with the hand raised beside its shoulder (the PR2's carry postures), or None."""

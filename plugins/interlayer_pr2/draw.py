@@ -511,6 +511,11 @@ def animation_frames(geometry, scene, trajectory) -> list:
                         state.objects[obj] = P
                     state.grippers[arm] = "open"
                     frames += [frame(i)] * PAUSE
+                elif kind == "handover":  # one hand closes on the object, the other lets go
+                    src, dst = seg.get("from"), seg.get("to")
+                    state.held[dst] = (state.held.pop(src)[0], np.asarray(seg.get("grasp"), float))
+                    state.grippers.update({dst: "closed", src: "open"})
+                    frames += [frame(i)] * PAUSE
             except Exception:  # one odd segment must not kill the page
                 continue
     frames += [frame(max(0, len(steps) - 1))] * (3 * PAUSE)
