@@ -93,7 +93,6 @@ def test_optimal_plans_use_the_tray_and_cost_the_known_optimum(host, planner):
 def test_side_costs_make_cross_reaching_dearer(host):
     """side_costs: picking an object on the robot's left with the right hand costs 3, so the optimal
     Dinner-2 plan uses the hand on each object's side."""
-    from interlayer.errors import UserError
     from interlayer_dinner.domain import make_domain
 
     model = abstract(_problem(2, side_costs=True))
@@ -107,6 +106,19 @@ def test_side_costs_make_cross_reaching_dearer(host):
                for x, y in (("left", "right"), ("right", "left")))
     assert res.status == "solved" and res.cost == model.cost(res.plan) == best
     assert "handoff" in {a.name for a in make_domain(handoff=True).actions}
+
+
+def test_handoff_makes_side_cost_plans_cheaper(host):
+    """With side costs, picking with the near hand, handing over and placing with the other (1 + 1 + 1)
+    beats reaching across (1 + 3): the optimal Dinner-2 plan hands an object over and costs 1 less."""
+    bjolp = host["task_planners"].get("fast-downward-bjolp").factory({})
+    costs = {}
+    for handoff in (False, True):
+        model = abstract(_problem(2, side_costs=True, handoff=handoff))
+        res = bjolp.plan(model, model.init, 60)
+        assert res.status == "solved"
+        costs[handoff] = res.cost
+    assert costs[True] == costs[False] - 1 and any(s.action == "handoff" for s in res.plan)
 
 
 @pytest.fixture(scope="module")
