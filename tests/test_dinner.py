@@ -197,15 +197,16 @@ def test_validator_accepts_the_carry_and_rejects_a_dropped_rider(tray_run):
     assert "moves while both hands carry the tray" in _check(geometry, plan, arm)[0]
 
 
-@pytest.fixture(scope="module")
-def handoff_run(host):
-    """Dinner-2 with handoff: the right hand picks a cup from the side table and hands it to the left
-    (pick, handoff refined for real, with the problem's own generators)."""
+@pytest.fixture(scope="module", params=["cup", "bowl"])
+def handoff_run(host, request):
+    """Dinner-2 with handoff: the right hand picks a cup (or a bowl, held from above, whose top the
+    holding fingers cover down to mid-height) from the side table and hands it to the left (pick,
+    handoff refined for real, with the problem's own generators)."""
     from interlayer_dinner import generators
 
     problem = _problem(2, seed=0, handoff=True)
     geometry = problem.geometry
-    cup = next(n for n, k in geometry.kinds.items() if k == "cup")
+    cup = next(n for n, k in geometry.kinds.items() if k == request.param)
     motion = host["motion_planners"].get("ompl:RRTConnect").factory({"time_limit": 2.0})
     motion.seed = 0
     plan = [GroundStep("pick", (cup, "right", "side", "room_a")), GroundStep("handoff", (cup, "right", "left"))]
