@@ -43,6 +43,7 @@ BASE = DomainSpec(
         "Clear": ("obj",), "On": ("obj", "obj"),
         "Near": ("obj", "arm"), "NearLoc": ("loc", "arm"),  # on that arm's side (side_costs)
         "IsSP": ("spose", "obj", "obj"), "Unstackable": ("spose",),
+        "Passable": ("obj",),  # one hand can take it from the other (handoff; DinnerGeometry.passable)
     },
     skolems=(Skolem("sp", ("obj", "obj"), "spose", "IsSP", "where the first object rests when stacked on the second"),),
     geometric=("Unstackable",),
@@ -82,7 +83,7 @@ BASE = DomainSpec(
 )
 
 HANDOFF = ActionSpec("handoff", (("?o", "obj"), ("?from", "arm"), ("?to", "arm")),
-                     "(and (Holding ?o ?from) (HandEmpty ?to))",
+                     "(and (Holding ?o ?from) (HandEmpty ?to) (Passable ?o))",
                      "(and (not (Holding ?o ?from)) (HandEmpty ?from) (Holding ?o ?to) (not (HandEmpty ?to)))",
                      pose_generator="dinner:handoff")
 

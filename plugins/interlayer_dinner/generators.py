@@ -221,7 +221,6 @@ def place_tray(problem, step, world, rng, limit: int = 4, tries: int = 30):
 
 
 HANDOVER = (0.55, 0.0, 1.05)  # the object's centre in the base frame: in front of the chest, above the tables
-HANDOVER_DROP = 0.02  # a side grasp of an object held from above sits this far below its centre
 HANDOVER_LINE = 0.10  # approach and retreat length at the hand-over (PRE_GRASP's 0.20 rarely has IK so close)
 
 
@@ -245,11 +244,7 @@ def handoff(problem, step, world, rng, limit: int = 4, tries: int = 30):
             continue
         w = world.with_arm(src, hold)
         # the receiving hand comes from its own side
-        offered = grasp_poses(geometry, obj, P, yaw - s * rng.uniform(0.9, 1.5), kinds, rng, n_side=3)
-        if top_held:  # the holding fingertips reach down to mid-height on a bowl: grasp below them
-            drop = trans(0, 0, -min(HANDOVER_DROP, geometry.height(obj) / 2 - 0.005))
-            offered = [(kind, drop @ Tg) for kind, Tg in offered]
-        for kind, Tg in offered:
+        for kind, Tg in grasp_poses(geometry, obj, P, yaw - s * rng.uniform(0.9, 1.5), kinds, rng, n_side=3):
             grasp = geometry.ik(w, dst, Tg, rng, movables=True, ignore=(obj,), gripper="open", attempts=4)
             line = grasp is not None and _line(geometry, w, dst, Tg, lambda e, Tg=Tg: Tg @ trans(-e, 0, 0),
                                                HANDOVER_LINE, grasp, rng, (obj,), "open")

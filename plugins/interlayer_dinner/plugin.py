@@ -37,6 +37,8 @@ def make_problem(params, seed):
     init.add(("LocIn", "tray", "room_a"))
     if params["side_costs"]:
         init |= geometry.sides(names)
+    if params["handoff"]:
+        init |= {("Passable", o) for o in geometry.passable(names)}
     goal = "(and " + " ".join(f"(At {o} set_{o})" for o in names) + ")"
     domain = make_domain(handoff=params["handoff"], side_costs=params["side_costs"])
     return Problem(domain, objects, frozenset(init), goal, geometry,

@@ -27,6 +27,8 @@ from interlayer_pr2.world import CARRY, PADDING, PR2Geometry, World, _failure, _
 from .scene import TOP, TRAY
 
 TRAY_GRIP = TRAY[2] + 0.004  # m between the finger pads closed around the tray's edge
+TOP_DEPTH = 0.03  # a top grasp's tool point this far below the object's top, at most mid-height (pr2 grasp_poses)
+HANDOVER_GAP = 0.01  # m from a top grasp's tool point down to the receiving side grasp's, at mid-height
 PICKS = ("pick", "take_off_tray", "unstack")
 PLACES = ("place", "put_on_tray", "stack")
 
@@ -103,6 +105,12 @@ class DinnerGeometry(PR2Geometry):
             facts.add(("Near", o, "left" if self.specs[o].pose[1] > mid_o else "right"))
             facts.add(("NearLoc", f"set_{o}", "left" if settings[o][1] < mid_s else "right"))
         return facts
+
+    def passable(self, names) -> set:
+        """Objects one hand can take from the other: tall enough that a side grasp at mid-height stays
+        below the fingertips of a top grasp. A bowl held from above could only be taken lower down, and
+        a hand that low cannot put it down on a table or the tray again (its fingers would hit it)."""
+        return {o for o in names if self.height(o) / 2 - min(TOP_DEPTH, self.height(o) / 2) >= HANDOVER_GAP}
 
     def free_slots(self, world) -> list:
         """The tray's slots with nothing standing in them, in order."""
