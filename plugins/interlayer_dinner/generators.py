@@ -221,6 +221,7 @@ def place_tray(problem, step, world, rng, limit: int = 4, tries: int = 30):
 
 
 HANDOVER = (0.55, 0.0, 1.05)  # the object's centre in the base frame: in front of the chest, above the tables
+HANDOVER_DROP = 0.005  # a side grasp of an object held from above: this far below its centre
 HANDOVER_LINE = 0.10  # approach and retreat length at the hand-over (PRE_GRASP's 0.20 rarely has IK so close)
 
 
@@ -244,7 +245,10 @@ def handoff(problem, step, world, rng, limit: int = 4, tries: int = 30):
             continue
         w = world.with_arm(src, hold)
         # the receiving hand comes from its own side
-        for kind, Tg in grasp_poses(geometry, obj, P, yaw - s * rng.uniform(0.9, 1.5), kinds, rng, n_side=3):
+        offered = grasp_poses(geometry, obj, P, yaw - s * rng.uniform(0.9, 1.5), kinds, rng, n_side=3)
+        if top_held:  # below the holding fingers, which swing out when they open
+            offered = [(kind, trans(0, 0, -HANDOVER_DROP) @ Tg) for kind, Tg in offered]
+        for kind, Tg in offered:
             grasp = geometry.ik(w, dst, Tg, rng, movables=True, ignore=(obj,), gripper="open", attempts=4)
             line = grasp is not None and _line(geometry, w, dst, Tg, lambda e, Tg=Tg: Tg @ trans(-e, 0, 0),
                                                HANDOVER_LINE, grasp, rng, (obj,), "open")
@@ -252,6 +256,8 @@ def handoff(problem, step, world, rng, limit: int = 4, tries: int = 30):
                 continue
             handed = replace(w.with_arm(dst, grasp), held={dst: (obj, np.linalg.inv(Tg) @ P)},
                              grippers={src: "open", dst: "closed"})
+            if geometry.in_collision(handed):  # the opening fingers of the holding hand swing into the other hand
+                continue
             back_at = (lambda e: trans(0, 0, e) @ T) if top_held else (lambda e: T @ trans(-e, 0, 0))
             back = _line(geometry, handed, src, T, back_at, HANDOVER_LINE, hold, rng, (obj,), "open")
             if not back:
