@@ -1,4 +1,4 @@
-"""Clutter-N (BENCHMARKS.md section 2) and the pybullet-planning JSON loader (section 3)."""
+"""Clutter-N (BENCHMARKS.md section 2); the pybullet-planning JSON loader is tested in test_pbjson.py."""
 from pathlib import Path
 
 import pytest
@@ -7,10 +7,6 @@ from interlayer.errors import UserError
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "examples" / "clutter.toml"
-SHARED = Path(__file__).resolve().parents[2] / "shared"
-JSON_DIR = SHARED / "benchmarks" / "pybullet-planning-json"
-needs_shared = pytest.mark.skipif(not JSON_DIR.is_dir(), reason=f"{JSON_DIR} (beside the checkout) is absent: "
-                                  "the pybullet-planning JSON problems are not part of the project")
 
 
 def _problem(overrides):
@@ -58,44 +54,6 @@ def test_clutter40_seed0_solves_and_validates(tmp_path):
     assert result.status == "solved", result.reason
     api.write_outputs(result, tmp_path)
     assert api.validate(tmp_path) == []
-
-
-@needs_shared
-def test_json_loader_reads_the_papers_scene(caplog):
-    import logging
-
-    from interlayer.plugins import PluginHost
-
-    with caplog.at_level(logging.WARNING):
-        problem = PluginHost().load_problem(JSON_DIR / "srivastava_table_r040.json", {}, 0)
-    layout = problem.geometry.layout
-    assert len(layout.objects) == 40 and layout.target == "object1"
-    assert layout.grasps == ("side",)
-    assert all(o.shape == "cylinder" and abs(o.size[0] - 0.04) < 1e-9 for o in layout.objects)
-    assert abs(layout.extra["table_top"] - 0.8) < 1e-9
-    assert problem.goal == "(or (Holding object1 left) (Holding object1 right))"
-    assert "goal_config" in caplog.text and "ignored" in caplog.text
-
-
-@needs_shared
-def test_json_other_goal_kinds_are_a_clear_error():
-    from interlayer.plugins import PluginHost
-
-    with pytest.raises(UserError, match="goal_regions"):
-        PluginHost().load_problem(JSON_DIR / "blocked.json", {}, 0)
-
-
-@needs_shared
-def test_papers_scene_as_shipped_is_unsolvable_by_gripper_width(tmp_path):
-    import time
-
-    t0 = time.perf_counter()
-    result = api.solve(str(JSON_DIR / "srivastava_table.json"))
-    assert result.status == "unsolvable"
-    assert "0.100 m wide" in result.reason and "gripper opens only" in result.reason
-    assert time.perf_counter() - t0 < 30
-    api.write_outputs(result, tmp_path)
-    assert "problem" in (tmp_path / "config.toml").read_text()  # rebuildable: problem.file is recorded
 
 
 def test_a_reset_reseeds_the_clutter_pick_generator(host):

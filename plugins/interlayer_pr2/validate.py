@@ -101,15 +101,9 @@ def validate_trajectory(geometry, plan, trajectory) -> list[str]:
                 P = robot.tool_pose(q, arm) @ world.held[arm][1]
                 if not _pose_close(P, seg["pose"]):
                     return errors + [f"{at}: {obj} is released away from the gripper (teleported)"]
-                spec = geometry.specs[obj]
-                bottom = P[2, 3] - spec.height / 2
-                upright = P[2, 2] > math.cos(math.radians(2))
-                xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
-                on_table = xmin <= P[0, 3] <= xmax and ymin <= P[1, 3] <= ymax
-                top = table_top(geometry.layout)
-                if not (upright and on_table and top <= bottom <= top + REST_GAP + 0.005):
-                    return errors + [f"{at}: {obj} is released at {np.round(P[:3, 3], 3).tolist()}, not resting upright "
-                                     f"on the table"]
+                why = _not_resting(geometry, obj, P, world)
+                if why:
+                    return errors + [f"{at}: {obj} is released at {np.round(P[:3, 3], 3).tolist()}, {why}"]
                 held = {a: v for a, v in world.held.items() if a != arm}  # release = open the gripper + detach
                 world = replace(world, objects={**world.objects, obj: P}, held=held, grippers={**world.grippers, arm: "open"})
                 if geometry.in_collision(world):
@@ -117,8 +111,25 @@ def validate_trajectory(geometry, plan, trajectory) -> list[str]:
                     return errors + [f"{at}: {obj} released into a collision: {_pairs(pairs)}"]
             else:
                 return errors + [f"{at}: unknown segment kind {kind!r}"]
-    errors += _check_goal(geometry, world)
+    goal_violations = getattr(geometry, "goal_violations", None)  # a domain with goals of its own
+    errors += goal_violations(world, trajectory) if goal_violations else _check_goal(geometry, world)
     return errors
+
+
+def _not_resting(geometry, obj, P, world):
+    """Why a released object does not rest stably (None if it does): on the table, unless the geometry
+    says where things may rest (``resting_on(obj, P, world)``)."""
+    resting_on = getattr(geometry, "resting_on", None)
+    if resting_on is not None:
+        return resting_on(obj, P, world)
+    bottom = P[2, 3] - geometry.specs[obj].height / 2
+    upright = P[2, 2] > math.cos(math.radians(2))
+    xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
+    on_table = xmin <= P[0, 3] <= xmax and ymin <= P[1, 3] <= ymax
+    top = table_top(geometry.layout)
+    if not (upright and on_table and top <= bottom <= top + REST_GAP + 0.005):
+        return "not resting upright on the table"
+    return None
 
 
 def _check_motion(geometry, world, seg, at):
