@@ -39,9 +39,7 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
         Skolem("bpfpd", ("obj", "arm", "surf", "slot"), "bpose", "IsBPFPD", "a base pose from which arm can put obj on surf"),
         Skolem("gpfpd", ("obj", "arm", "surf", "slot"), "pdpose", "IsGPFPD", "a gripper pose putting obj on a stable spot of surf"),
     ]
-    # one object in hand at a time: with a tall box held beside one shoulder, the other arm's carry
-    # posture is mostly blocked, and a failed carry teaches the task planner nothing
-    pick_pre = ["(HandEmpty ?arm)", "(HandEmpty ?arm2)", "(Resting ?o)", "(IsBPFG ?bp ?o ?arm)", "(IsGPFG ?gp ?o ?arm)", "(Other ?arm ?arm2)",
+    pick_pre = ["(HandEmpty ?arm)", "(Resting ?o)", "(IsBPFG ?bp ?o ?arm)", "(IsGPFG ?gp ?o ?arm)", "(Other ?arm ?arm2)",
                 "(IsGPFG ?gp2 ?o ?arm2)", "(forall (?b - obj) (not (Obstructs ?b ?gp)))"]
     pick_eff = ["(Holding ?o ?arm)", "(not (HandEmpty ?arm))", "(not (Resting ?o))", "(forall (?s - surf) (not (On ?o ?s)))",
                 "(forall (?p - gpose) (not (Obstructs ?o ?p)))", "(forall (?p - pdpose) (not (PDObstructs ?o ?p)))",

@@ -14,7 +14,7 @@ from interlayer.errors import UserError
 from interlayer_pr2.scene import Layout
 
 from .domain import SLOTS, pbjson_domain
-from .scene import read_scene, top_name
+from .scene import area, read_scene, top_name
 
 log = logging.getLogger("interlayer.pbjson")
 ARMS = ("left", "right")
@@ -63,9 +63,13 @@ def build_problem(scene, source) -> Problem:
     spots = {n: s for n, s in scene.surfaces.items()}
     tables = [s for s in spots.values() if s.kind == "table"]
     # the single table's box: Clutter's base sampler keeps the base off it (several tables: off, by collision)
+    clutter_table = None
     if len(tables) == 1:
         xs, ys = [p[0] for p in tables[0].polygon], [p[1] for p in tables[0].polygon]
         table = (min(xs), max(xs), min(ys), max(ys))
+        placing = any(scene.goals[k] for k in ("on", "stackings", "poses", "cleaned", "cooked"))
+        if not placing and abs(area(tables[0].polygon) - (table[1] - table[0]) * (table[3] - table[2])) < 1e-6:
+            clutter_table = tables[0].name  # the paper's kind of scene: Clutter's put-down sampler applies as it is
     else:
         table = (math.inf, -math.inf, math.inf, -math.inf)
     pts = [scene.base[:2]] + [p for o in scene.fixed + scene.objects if o.name not in scene.floors
@@ -81,7 +85,7 @@ def build_problem(scene, source) -> Problem:
     extra = {"table_top": float(main_top), "base_limits": (lo, hi), "torso_height": torso,
              "supports": tuple(o.name for o in scene.fixed if any(s.body == _body(o.name, s) for s in spots.values())),
              "surfaces": spots, "colors": scene.colors, "floors": [o for o in scene.fixed if o.name in scene.floors], "offsets": scene.offsets,
-             "arms": scene.arms, "goals": goals, "camera": scene.camera, "notes": scene.notes, "torso_conf": scene.torso}
+             "arms": scene.arms, "goals": goals, "clutter_table": clutter_table, "camera": scene.camera, "notes": scene.notes, "torso_conf": scene.torso}
     # the floor is drawn, not collided with (the base stands on it)
     layout = Layout([o for o in scene.fixed if o.name not in scene.floors], list(scene.objects), {"table": table}, goals["holding"], "pbjson",
                     scene.grasps, base=scene.base, extra=extra)

@@ -2,7 +2,8 @@
 
 * ``pbjson:pick``: Clutter's pick (stable grasp candidates per object pose, fewest objects in the way
   first).
-* ``pbjson:place``: for ``place`` a stable placement on the step's surface: a point inside its polygon
+* ``pbjson:place``: for ``place`` on the one table of a single-table scene, Clutter's put-down sampler;
+  otherwise a stable placement on the step's surface: a point inside its polygon
   (the object's whole footprint inside, for tables and regions; its centre over the top of an object
   it is stacked on), clear of fixed obstacles, other objects and the goal poses of others; for
   ``place_at_goal`` the goal pose itself (and its symmetric yaws). Then a base pose, IK, the lowering
@@ -39,6 +40,11 @@ class PBSampler(ClutterSampler):
         obj, arm, surf = step.args[0], step.args[1], step.args[2]
         geometry = problem.geometry
         if world.holder(obj) != arm:
+            return
+        if surf == geometry.layout.extra.get("clutter_table"):
+            # the paper's kind of scene (one axis-aligned table): Clutter's own put-down sampler, which keeps
+            # the target's approach corridors clear
+            yield from self.place(problem, replace(step, args=(obj, arm, step.args[3], *step.args[4:])), world, rng)
             return
         found = geometry.surface(surf, world)
         if found is None:
