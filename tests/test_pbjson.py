@@ -164,6 +164,8 @@ def test_clean_and_cook_semantics(tmp_path):
     (lambda d: d["bodies"][0]["links"][0][1].update(quat={"w": 0.92, "x": 0.38, "y": 0, "z": 0}), "bodies[0] (table).links[0][1].quat"),
     (lambda d: d["robots"][0]["conf"].update(l_elbow_flex_joint=[1.0]), "robots[0].conf.l_elbow_flex_joint"),
     (lambda d: d["task"].update(object_names=["a", "ghost"]), "task.object_names names 'ghost'"),
+    (lambda d: d["robots"][0].update(point=_p(1.2, 0.0, 0.0)), "robots[0]: the PR2 at its start"),
+    (lambda d: d["task"]["regions"][0].update(hull=[[1.3, 0.0], [1.3, 0.0]]), "task.regions[0].hull"),
 ])
 def test_unsupported_input_is_one_line_naming_the_field(tmp_path, edit, field):
     data = copy.deepcopy(scene(goal_holding="a"))

@@ -131,6 +131,8 @@ def read_body(body, i, movable):
     if not isinstance(links, list) or not all(isinstance(link, list) for link in links):
         raise UserError(f"{where}.links must be a list of lists of geoms.")
     for li, link in enumerate(links):
+        # a link has one colour in the previews: its last geom's (e.g. the IKEA tables are red all over)
+        color = next((c for c in (_color(g) for g in reversed(link) if isinstance(g, dict)) if c), None)
         for gi, geom in enumerate(link):
             at = f"{where}.links[{li}][{gi}]"
             kind = geom.get("type") if isinstance(geom, dict) else None
@@ -141,20 +143,20 @@ def read_body(body, i, movable):
                 e = [float(v) for v in geom["extents"]]
                 if len(e) != 3 or min(e) <= 0:
                     raise UserError(f"{at}.extents = {geom['extents']!r} must be three positive half extents.")
-                shapes.append(("box", tuple(2 * v for v in e), G, _color(geom), at))
+                shapes.append(("box", tuple(2 * v for v in e), G, color, at))
             elif kind == "cylinder":
                 r, h = float(geom["radius"]), float(geom["height"])
                 if not (r > 0 and h > 0):
                     raise UserError(f"{at}: radius {r} and height {h} must be positive.")
-                shapes.append(("cylinder", (r, h), G, _color(geom), at))
+                shapes.append(("cylinder", (r, h), G, color, at))
             elif kind == "sphere":
                 r = float(geom["radius"])
                 if r > 0:  # a sphere stands in as the cylinder around it
-                    shapes.append(("cylinder", (r, 2 * r), G, _color(geom), at))
+                    shapes.append(("cylinder", (r, 2 * r), G, color, at))
             else:
                 if not mesh:
                     shape, size, C = _aabb_shape(body, T, at)
-                    shapes.append((shape, size, C, _color(geom), at))
+                    shapes.append((shape, size, C, color, at))
                 mesh = True
     if not shapes:
         raise UserError(f"{where} has no shape (links hold no box, cylinder or mesh).")
