@@ -87,7 +87,11 @@ def build_problem(scene, source) -> Problem:
              "surfaces": spots, "colors": scene.colors, "floors": [o for o in scene.fixed if o.name in scene.floors], "offsets": scene.offsets,
              "arms": scene.arms, "goals": goals, "clutter_table": clutter_table, "camera": scene.camera, "notes": scene.notes, "torso_conf": scene.torso}
     # the floor is drawn, not collided with (the base stands on it)
-    layout = Layout([o for o in scene.fixed if o.name not in scene.floors], list(scene.objects), {"table": table}, goals["holding"], "pbjson",
+    # the target (Clutter's samplers search harder for its grasps and keep put-downs out of its way): the
+    # object to hold, else the one object a goal places
+    placed = list(dict.fromkeys([*goals["on"], *goals["stackings"], *goals["poses"]]))
+    target = goals["holding"] or (placed[0] if len(placed) == 1 else None)
+    layout = Layout([o for o in scene.fixed if o.name not in scene.floors], list(scene.objects), {"table": table}, target, "pbjson",
                     scene.grasps, base=scene.base, extra=extra)
     geometry = PBGeometry(layout)
     extra["goal_centres"] = {o: geometry.goal_centre(o) for o in goals["poses"]}

@@ -5,7 +5,8 @@
 * ``pbjson:place``: for ``place`` on the one table of a single-table scene, Clutter's put-down sampler;
   otherwise a stable placement on the step's surface: a point inside its polygon
   (the object's whole footprint inside, for tables and regions; its centre over the top of an object
-  it is stacked on), clear of fixed obstacles, other objects and the goal poses of others; for
+  it is stacked on), clear of fixed obstacles, other objects and the goal poses of others, and out of
+  the target's best approaches (as Clutter's put-downs); for
   ``place_at_goal`` the goal pose itself (and its symmetric yaws). Then a base pose, IK, the lowering
   and the retreat; candidates with fewer objects in the way first.
 * ``pbjson:go_home``: the start configuration.
@@ -17,7 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 from interlayer.refine import Candidate
-from interlayer_clutter.samplers import ClutterSampler, _base_free, _base_near, _coarse, _fmt, _movables_on
+from interlayer_clutter.samplers import CORRIDOR, HOVER, ClutterSampler, _base_free, _base_near, _coarse, _fmt, _movables_on
 from interlayer_pr2.scene import REST_GAP
 from interlayer_pr2.world import pose4
 
@@ -69,7 +70,7 @@ class PBSampler(ClutterSampler):
             d = min((math.hypot(x - a, y - b) - r - s for a, b, s in others), default=1.0)
             if d < 0.01:
                 continue
-            spots.append((min(d, 0.25) + 0.1 * rng.random(), float(x), float(y)))
+            spots.append((min(d, 0.25) - self.in_corridor(x, y) + 0.1 * rng.random(), float(x), float(y)))
             if len(spots) >= tries:
                 break
         spots.sort(key=lambda s: -s[0])
@@ -82,6 +83,15 @@ class PBSampler(ClutterSampler):
 
         yield from self._putdowns(problem, world, obj, arm, step.args[4], step.args[5],
                                   [(x, y, lambda h, x=x, y=y: pose_at(x, y, h)) for _, x, y in spots], rng)
+
+    def in_corridor(self, x, y) -> float:
+        """How much a spot stands in the way of the target's best approaches (see Clutter's pick)."""
+        penalty = 0.0
+        for cands in self.corridors.values():
+            for rank, (_, xy) in enumerate(cands):
+                if any(math.hypot(x - a, y - b) < CORRIDOR for a, b in xy):
+                    penalty = max(penalty, 2.0 if rank == 0 else 0.5)
+        return penalty
 
     def place_at_goal(self, problem, step, world, rng):
         obj, arm = step.args[0], step.args[1]
@@ -124,7 +134,8 @@ class PBSampler(ClutterSampler):
                 put = geometry.ik(w, arm, T, rng, attempts=4)
                 if put is None:
                     continue
-                lower = _line(geometry, w, arm, T, lambda d, T=T: trans(0, 0, d) @ T, LIFT, put, rng)
+                # lowered from HOVER above: the free transit ends above the other objects (as Clutter's picks)
+                lower = _line(geometry, w, arm, T, lambda d, T=T: trans(0, 0, d) @ T, LIFT + HOVER, put, rng)
                 back = _line(geometry, w.with_gripper(arm, "open"), arm, T, lambda d, T=T: T @ trans(-d, 0, 0), PRE_GRASP,
                              put, rng, gripper="open")
                 if lower is None or back is None:
