@@ -18,7 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 from interlayer.refine import Candidate
-from interlayer_clutter.samplers import CORRIDOR, HOVER, ClutterSampler, _base_free, _base_near, _coarse, _fmt, _movables_on
+from interlayer_clutter.samplers import CORRIDOR, ClutterSampler, _base_free, _base_near, _coarse, _fmt, _movables_on
 from interlayer_pr2.scene import REST_GAP
 from interlayer_pr2.world import pose4
 
@@ -134,8 +134,7 @@ class PBSampler(ClutterSampler):
                 put = geometry.ik(w, arm, T, rng, attempts=4)
                 if put is None:
                     continue
-                # lowered from HOVER above: the free transit ends above the other objects (as Clutter's picks)
-                lower = _line(geometry, w, arm, T, lambda d, T=T: trans(0, 0, d) @ T, LIFT + HOVER, put, rng)
+                lower = _line(geometry, w, arm, T, lambda d, T=T: trans(0, 0, d) @ T, LIFT, put, rng)
                 back = _line(geometry, w.with_gripper(arm, "open"), arm, T, lambda d, T=T: T @ trans(-d, 0, 0), PRE_GRASP,
                              put, rng, gripper="open")
                 if lower is None or back is None:
