@@ -83,7 +83,7 @@ def build_problem(scene, source) -> Problem:
         log.info("torso raised from %.3f (robots[0].conf) to %.3f m to reach surfaces at %.2f m", scene.torso, torso,
                  max(s.z for s in spots.values()))
     extra = {"table_top": float(main_top), "base_limits": (lo, hi), "torso_height": torso,
-             "supports": tuple(o.name for o in scene.fixed if any(s.body == _body(o.name, s) for s in spots.values())),
+             "supports": tuple(o.name for o in scene.fixed if any(_body(o.name, s) for s in spots.values())),
              "surfaces": spots, "colors": scene.colors, "floors": [o for o in scene.fixed if o.name in scene.floors], "offsets": scene.offsets,
              "arms": scene.arms, "goals": goals, "clutter_table": clutter_table, "camera": scene.camera, "notes": scene.notes, "torso_conf": scene.torso}
     # the floor is drawn, not collided with (the base stands on it)
