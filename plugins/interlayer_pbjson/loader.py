@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 
 from interlayer.domain import Problem
 from interlayer.errors import UserError
@@ -60,18 +59,17 @@ def torso_height(scene) -> float:
 def build_problem(scene, source) -> Problem:
     from .world import PBGeometry
 
-    spots = {n: s for n, s in scene.surfaces.items()}
+    spots = scene.surfaces
     tables = [s for s in spots.values() if s.kind == "table"]
-    # the single table's box: Clutter's base sampler keeps the base off it (several tables: off, by collision)
-    clutter_table = None
+    # the single table's box: Clutter's base sampler keeps the base off it (several tables: a box far away,
+    # and the base is kept off the tables by collision checks alone)
+    clutter_table, table = None, (1e9, 1e9, 1e9, 1e9)
     if len(tables) == 1:
         xs, ys = [p[0] for p in tables[0].polygon], [p[1] for p in tables[0].polygon]
         table = (min(xs), max(xs), min(ys), max(ys))
         placing = any(scene.goals[k] for k in ("on", "stackings", "poses", "cleaned", "cooked"))
         if not placing and abs(area(tables[0].polygon) - (table[1] - table[0]) * (table[3] - table[2])) < 1e-6:
             clutter_table = tables[0].name  # the paper's kind of scene: Clutter's put-down sampler applies as it is
-    else:
-        table = (math.inf, -math.inf, math.inf, -math.inf)
     pts = [scene.base[:2]] + [p for o in scene.fixed + scene.objects if o.name not in scene.floors
                               for p in [o.pose[:2]]]
     lo = (min(p[0] for p in pts) - 1.2, max(p[0] for p in pts) + 1.2)
@@ -82,17 +80,17 @@ def build_problem(scene, source) -> Problem:
     if scene.torso is not None and torso > scene.torso + 1e-9:
         log.info("torso raised from %.3f (robots[0].conf) to %.3f m to reach surfaces at %.2f m", scene.torso, torso,
                  max(s.z for s in spots.values()))
-    extra = {"table_top": float(main_top), "base_limits": (lo, hi), "torso_height": torso,
+    extra = {"table_top": float(main_top), "base_limits": (lo, hi), "torso_height": torso, "torso_conf": scene.torso,
              "supports": tuple(o.name for o in scene.fixed if any(_body(o.name, s) for s in spots.values())),
-             "surfaces": spots, "colors": scene.colors, "floors": [o for o in scene.fixed if o.name in scene.floors], "offsets": scene.offsets,
-             "arms": scene.arms, "goals": goals, "clutter_table": clutter_table, "camera": scene.camera, "notes": scene.notes, "torso_conf": scene.torso}
-    # the floor is drawn, not collided with (the base stands on it)
+             "surfaces": spots, "colors": scene.colors, "offsets": scene.offsets, "arms": scene.arms, "goals": goals,
+             "clutter_table": clutter_table, "camera": scene.camera, "notes": scene.notes,
+             "floors": [o for o in scene.fixed if o.name in scene.floors]}  # drawn, not collided with
     # the target (Clutter's samplers search harder for its grasps and keep put-downs out of its way): the
     # object to hold, else the one object a goal places
     placed = list(dict.fromkeys([*goals["on"], *goals["stackings"], *goals["poses"]]))
     target = goals["holding"] or (placed[0] if len(placed) == 1 else None)
-    layout = Layout([o for o in scene.fixed if o.name not in scene.floors], list(scene.objects), {"table": table}, target, "pbjson",
-                    scene.grasps, base=scene.base, extra=extra)
+    layout = Layout([o for o in scene.fixed if o.name not in scene.floors], list(scene.objects), {"table": table}, target,
+                    "pbjson", scene.grasps, base=scene.base, extra=extra)
     geometry = PBGeometry(layout)
     extra["goal_centres"] = {o: geometry.goal_centre(o) for o in goals["poses"]}
     names = [o.name for o in scene.objects]
