@@ -153,6 +153,27 @@ def test_clean_and_cook_semantics(tmp_path):
     assert not any("cooked" in v for v in g.goal_violations(world, traj("sink", "stove")))
 
 
+def test_a_stacking_placement_is_sampled_on_the_top_of_the_object_below(tmp_path):
+    from dataclasses import replace
+
+    from interlayer.domain import GroundStep
+    from interlayer_pbjson.samplers import PBSampler
+    from interlayer_pr2.generators import grasp_poses
+
+    p = load(tmp_path, scene(goal_stackings={"b": "a"}))
+    g = p.geometry
+    w = replace(g.initial_world(), base=(0.6, -0.2, 0.0))
+    P = w.objects["b"]
+    _, T = grasp_poses(g, "b", P, 0.0, ("side",), np.random.default_rng(0), n_side=1)[0]
+    w = replace(w, objects={k: v for k, v in w.objects.items() if k != "b"}, held={"left": ("b", np.linalg.inv(T) @ P)})
+    w = w.with_arm("left", g.carry(w, "left", np.random.default_rng(0)))
+    step = GroundStep("place", ("b", "left", "a_top", "s1", "bpfpd_b_left_a_top_s1", "gpfpd_b_left_a_top_s1"))
+    found = list(PBSampler([0])(p, step, w, np.random.default_rng(0)))
+    assert found
+    Q, A = np.asarray(found[0].values["object_pose"]), w.objects["a"]
+    assert g.supports_of("b", Q, w) == ["a_top"] and np.hypot(*(Q[:2, 3] - A[:2, 3])) < 0.03
+
+
 @pytest.mark.parametrize("edit, field", [
     (lambda d: d["bodies"][3]["links"][0][0].update(type="capsule"), "bodies[3] (a).links[0][0].type = 'capsule'"),
     (lambda d: d["task"].update(goal_regions={"ghost": "goal"}), "task.goal_regions key 'ghost'"),

@@ -58,7 +58,8 @@ class PBSampler(ClutterSampler):
         geometry.sync(world)
         reserved = [(C[0, 3], C[1, 3], _radius(geometry.specs[k])) for k, C in geometry.layout.extra["goal_centres"].items()
                     if k != obj]
-        others = [(Q[0, 3], Q[1, 3], _radius(geometry.specs[k])) for k, Q in world.objects.items() if k != obj]
+        below = geometry.surfaces[surf].body  # the object stacked on (kind "top"): not in the way
+        others = [(Q[0, 3], Q[1, 3], _radius(geometry.specs[k])) for k, Q in world.objects.items() if k not in (obj, below)]
         r = _radius(o)
         xs, ys = [p[0] for p in poly], [p[1] for p in poly]
         spots = []
