@@ -70,7 +70,8 @@ class InterfaceLayer:
         with self.stats.timer("task_planning"):
             res = self.task_planner.plan(self.model, state, min(self.settings.task_timeout, self._time_left()))
         self.trace.emit("task_plan", call=self.task_calls, from_step=from_step, status=res.status, state_size=len(state),
-                        plan=plan_json(res.plan), time=round(res.time, 4), reason=res.reason)
+                        plan=plan_json(res.plan), time=round(res.time, 4), reason=res.reason,
+                        cost=self.model.cost(self.plan[:from_step] + list(res.plan)) if res.status == "solved" else None)
         if res.status == "error":
             raise RuntimeError(res.reason)
         self.last_task_status = res.status
@@ -164,6 +165,7 @@ class InterfaceLayer:
         self.stats.times["interface"] = max(0.0, self.stats.times["total"] - accounted)
         self.trace.emit("end", status=status, reason=reason)
         result = Result(status=status, reason=reason, plan=list(self.plan) if status == "solved" else [],
+                      plan_cost=self.model.cost(self.plan) if status == "solved" else None,
                       learned_facts=list(self.learned), replans=self.replans, task_planner_calls=self.task_calls,
                       times=dict(self.stats.times), counts=dict(self.stats.counts), seed=self.settings.seed,
                       refinement=refinement, trace=self.trace, problem=self.model.problem, model=self.model)

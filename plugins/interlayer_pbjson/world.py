@@ -5,8 +5,8 @@ robot's start configuration from the file, ``go_home``, and the goal checks the 
   the base drives (an outstretched arm would sweep the tables).
 * ``place_at_goal`` refines like ``place`` (the put-down pose is the goal pose).
 * ``go_home``: tuck, drive back to the start base pose, then move each empty arm to its start joints.
-* The validator (interlayer_pr2.validate) asks ``resting_on`` where a released object rests and
-  ``goal_violations`` whether the goals hold, replaying the releases for clean / cook.
+* The validator (interlayer_pr2.validate, with this domain's rules) asks ``resting_on`` where a released
+  object rests and ``goal_violations`` whether the goals hold, replaying the releases for clean / cook.
 """
 from __future__ import annotations
 
@@ -216,6 +216,16 @@ class PBGeometry(PR2Geometry):
                 return _failure(res, f"go_home {arm} arm")
             w = w.with_arm(arm, self.start_arms[arm])
         return StepOutcome(True, replace(w, tloc={}), segs)
+
+    def validate(self, plan, trajectory) -> list[str]:
+        """The PR2 validator with this domain's resting places and goals (its ``rules``)."""
+        from types import SimpleNamespace
+
+        from interlayer_pr2.validate import validate_trajectory
+
+        rules = SimpleNamespace(rests=lambda g, world, obj, P: g.resting_on(obj, P, world),
+                                goal=lambda g, world: g.goal_violations(world, trajectory))
+        return validate_trajectory(type(self)(self.layout, padding=0.0), plan, trajectory, rules=rules)
 
     # -- output --------------------------------------------------------------------------------------
     def trajectory_json(self, plan, outcomes) -> dict:
