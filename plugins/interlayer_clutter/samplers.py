@@ -185,10 +185,11 @@ class ClutterSampler(EpochState):
             spots.append((self.spot_score(geometry, world, target, x, y, corridors), x, y, z))
         spots.sort(key=lambda s: -s[0])
         found = []
+        clear, good = [], []  # candidates with nothing on their lowering and retreat; and off known approaches
         for rank, (_, x, y, z) in enumerate(spots):
             blocks = _in_corridors(x, y, corridors)
-            if rank >= 3 * limit and any(f[0][0] == 0 for f in found):
-                break  # past the best spots, only search on while every spot found is certainly blocked
+            if rank >= 3 * limit and (good or (clear and rank >= 6 * limit)):
+                break  # past the best spots, search on while every spot found is certainly or likely blocked
             for _ in range(4 if rank < 3 * limit else 8):
                 base = _base_near(geometry, x, y, rng)
                 if base is None or not _base_free(problem.geometry, world, base):
@@ -209,9 +210,10 @@ class ClutterSampler(EpochState):
                     sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], lower[-1]), (), gripper=None)
                 # a spot on a known approach blocks a later pick for sure: worse than a guessed transit hit
                 found.append(((len(hit), blocks, len(sweep)), rank, base, x, y, P, T, lower, back))
+                clear += [found[-1]] if not hit else []
+                good += [found[-1]] if not hit and not blocks else []
                 break
-            clear = [f for f in found if f[0][0] == 0]
-            if (len(found) >= limit and clear) or (len(clear) >= 2 and clear[-1][0] == (0, 0, 0)):
+            if (len(found) >= limit and good) or (len(good) >= 2 and good[-1][0] == (0, 0, 0)):
                 break
         found.sort(key=lambda f: (f[0], f[1]))
         for (hits, blocks, sweep), _, base, x, y, P, T, lower, back in found[:limit]:
