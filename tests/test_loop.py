@@ -254,6 +254,18 @@ def test_infeasible_reference_ends_unsolvable(host):
     assert result.status == "unsolvable" and result.reason == "a is too wide for the gripper"
 
 
+def test_candidates_are_computed_only_when_the_search_asks_for_them(host):
+    drawn = []
+
+    def gen(problem, step, world, rng):
+        for label in ("c0", "c1", "c2"):
+            drawn.append(label)
+            yield Candidate((label,), {}, label)
+
+    result, _ = run(lambda *a: None, gen=gen, host=host)
+    assert result.status == "solved" and drawn == ["c0"]
+
+
 # -- no silent loops (interlayer.watchdog) ------------------------------------------------------
 def test_a_generator_that_yields_nothing_is_named_with_its_step(host):
     def empty(problem, step, world, rng):

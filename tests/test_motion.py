@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from interlayer.motion import ConfigSpace, MotionQuery
+from interlayer.motion import ConfigSpace, MotionPlanner, MotionQuery
 
 SE2 = ConfigSpace("se2", (-1, -1, -math.pi), (1, 1, math.pi), (False, False, True), 0.01)
 
@@ -60,3 +60,60 @@ def test_ompl_vector_space(host):
                     lambda q: True, lambda q: set())
     plan = host["motion_planners"].get("ompl:RRTConnect").factory({"time_limit": 1.0}).plan(q)
     assert plan.ok and all(np.linalg.norm(p[:2] - 0.4) > 0.2 for p in space.densify(plan.path))
+
+
+def counting(planner):
+    """``planner`` (a real one) counting the searches it runs."""
+    planner.searches_run = 0
+    search = planner._plan
+
+    def counted(*args):
+        planner.searches_run += 1
+        return search(*args)
+
+    planner._plan = counted
+    return planner
+
+
+def test_a_free_straight_line_is_the_answer_without_a_search(host):
+    planner = counting(host["motion_planners"].get("ompl:RRTConnect").factory({"time_limit": 0.5}))
+    q = wall_query(movable_wall=False, start=(-0.5, 0.7, 0), goal=(0.5, 0.7, 0))  # above the wall
+    plan = planner.plan(q)
+    assert plan.ok and len(plan.path) == 2 and planner.searches_run == 0
+    assert planner.plan(q, straight=False).ok and planner.searches_run == 1  # asked for another path: searched
+
+
+def test_a_goal_on_a_movable_object_is_its_obstruction_without_a_relaxed_search(host):
+    """The movable 'box' sits on the goal, and a fixed wall cuts the straight line: the relaxed search
+    would have to go around the wall; what collides with the goal obstructs every path anyway."""
+    def in_wall(q):
+        return abs(q[0]) < 0.05 and abs(q[1]) < 0.5
+
+    def in_box(q):
+        return abs(q[0] - 0.5) < 0.1 and abs(q[1]) < 0.1
+
+    q = MotionQuery(SE2, np.array([-0.5, 0, 0]), np.array([0.5, 0, 0]),
+                    is_valid=lambda q: not in_wall(q) and not in_box(q), is_valid_static=lambda q: not in_wall(q),
+                    movables_at=lambda q: {"box"} if in_box(q) else set())
+    planner = counting(host["motion_planners"].get("ompl:RRTConnect").factory({"time_limit": 0.5}))
+    plan = planner.plan(q)
+    assert not plan.ok and plan.obstructions == ("box",) and planner.searches_run == 0
+
+
+class FullSearchTimesOut(MotionPlanner):
+    """Narrowly scoped stand-in (not a real planner): the search with movables fails as if it had run
+    out of time; the relaxed one returns a path above the wall, which touches no movable object."""
+
+    def _solve(self, query, relaxed, time_limit):
+        return [query.start, (-0.5, 0.7, 0), (0.5, 0.7, 0), query.goal] if relaxed else None
+
+
+def test_a_relaxed_path_clear_of_movables_is_the_answer():
+    def in_box(q):  # a movable box below the fixed wall, away from the relaxed path
+        return abs(q[0]) < 0.1 and abs(q[1] + 0.7) < 0.1
+
+    fixed = wall_query(movable_wall=False)
+    q = MotionQuery(SE2, fixed.start, fixed.goal, is_valid=lambda q: fixed.is_valid(q) and not in_box(q),
+                    is_valid_static=fixed.is_valid, movables_at=lambda q: {"box"} if in_box(q) else set())
+    plan = FullSearchTimesOut().plan(q)
+    assert plan.ok and len(plan.path) == 4 and plan.obstructions == ()

@@ -122,3 +122,24 @@ def test_ten_objects_task_planner_calls_stay_fast(tmp_path):
     calls = [e["time"] for e in result.trace.events if e["type"] == "task_plan"]
     assert max(calls[1:] or [0]) < 1.0, calls  # the first call includes the planner's start-up
     assert validate(write_outputs(result, tmp_path)) == []
+
+
+def test_move_base_samples_afresh_in_another_world():
+    """The loop seeds a step's generator alike in every world; the bases tried for a grasp must still
+    differ when the steps before left the robot elsewhere, or a backtrack retries the same failures."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from interlayer.api import prepare
+    from interlayer.domain import GroundStep
+    from interlayer_pr2.generators import move_base
+
+    run = prepare(EXAMPLE, ["planner.seed=0"])
+    world = run.problem.geometry.initial_world()
+    step = GroundStep("move_base", ("bpfg_blocker_right",))
+    firsts = []
+    for base in ((0.85, 0.0, 0.0), (0.85, 0.1, 0.0)):  # both inside the table: no "stay" candidate
+        cand = next(iter(move_base(run.problem, step, replace(world, base=base), np.random.default_rng(7))))
+        firsts.append(cand.waypoints[0])
+    assert firsts[0] != firsts[1]

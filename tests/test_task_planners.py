@@ -50,3 +50,19 @@ def test_up_validator_checks_final_plans(host):
     plan = planner.plan(model, model.init, 30).plan
     assert planner.validate_plan(model, model.init, plan) == ""
     assert "rejected" in planner.validate_plan(model, model.init, plan[1:])
+
+
+def test_unified_planning_loads_without_configspace_and_scipy_stats():
+    """UP imports ConfigSpace (and scipy.stats, most of its import time) only for engines' tuning
+    spaces: a stand-in answers while UP loads, and the real class comes when one is asked for."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from interlayer_up.planner import _quiet_environment; _quiet_environment(); "
+            "print('ConfigSpace' in sys.modules, 'scipy.stats' in sys.modules); "
+            "from unified_planning.engines.engine import Engine; from up_pyperplan.engine import EngineImpl; "
+            "import ConfigSpace; print(isinstance(EngineImpl.get_configuration_space(), ConfigSpace.ConfigurationSpace), "
+            "type(Engine.get_configuration_space()).__module__)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["False", "False", "True", "ConfigSpace.configuration_space"]

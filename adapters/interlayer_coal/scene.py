@@ -74,10 +74,12 @@ class CollisionScene:
         self._request.security_margin = margin
         self.margin = margin
         self._index = None  # flat arrays of every shape's centre and radius, rebuilt lazily
+        self._reach = {}  # id(body) -> (body, margin, squared centre distances below which shapes may touch)
 
     def add(self, name: str, shapes: list[Shape], pose: np.ndarray, movable: bool) -> None:
         self.bodies[name] = Body(shapes)
         self.movable[name] = movable
+        self._reach = {}
         self.set_pose(name, pose)
 
     def set_pose(self, name: str, pose: np.ndarray) -> None:
@@ -104,7 +106,11 @@ class CollisionScene:
             self._build_index()
         owners, objects, centres, radii = self._index
         mine = np.array(body.place(pose))
-        reach = (np.array(body.radii)[:, None] + radii[None, :] + self.margin) ** 2
+        cached = self._reach.get(id(body))
+        if cached is None or cached[0] is not body or cached[1] != self.margin:  # fixed until a body is added
+            reach = (np.array(body.radii)[:, None] + radii[None, :] + self.margin) ** 2  # (a planner's hot path)
+            cached = self._reach[id(body)] = (body, self.margin, reach)
+        reach = cached[2]
         d = mine[:, None, :] - centres[None, :, :]
         close = np.nonzero(np.einsum("ijk,ijk->ij", d, d) <= reach)
         found = set()

@@ -34,6 +34,8 @@ class CartesianPlanner(MotionPlanner):
     target; rotations within 0.01 rad), ``blend`` (largest joint-space distance of the final blend
     onto the goal configuration)."""
 
+    searches = False  # the tool's straight line: a joint-space line is no answer
+
     def __init__(self, time_limit=1.0, step=0.005, rot_step=0.02, tolerance=1e-3, blend=0.1, options=None):
         super().__init__(name="ik:cartesian", time_limit=time_limit, options=dict(options or {}))
         self.step, self.rot_step, self.tolerance, self.blend = step, rot_step, tolerance, blend

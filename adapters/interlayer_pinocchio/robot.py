@@ -135,9 +135,13 @@ class JointGroup:
 
     def within_bounds(self, values, tol: float = 1e-9) -> bool:
         """True if every non-circular value lies within [lower, upper] (+tol)."""
-        v = np.asarray(values, dtype=float)
-        lin = ~np.asarray(self.circular)
-        return bool(np.all(v[lin] >= self.lower[lin] - tol) and np.all(v[lin] <= self.upper[lin] + tol))
+        # hot path (every collision check of a planner): plain comparisons beat numpy on 7 floats
+        return all(lo - tol <= values[i] <= hi + tol for i, lo, hi in self._bounded)
+
+    @cached_property
+    def _bounded(self) -> tuple[tuple[int, float, float], ...]:
+        """(index, lower, upper) of each non-circular value."""
+        return tuple((i, float(self.lower[i]), float(self.upper[i])) for i, c in enumerate(self.circular) if not c)
 
     def wrap(self, values) -> np.ndarray:
         """Copy with circular entries wrapped to (-pi, pi]."""

@@ -3,10 +3,13 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import importlib
 import logging
 import multiprocessing
+import sys
 import tempfile
 import time
+import types
 from dataclasses import dataclass, field
 
 from interlayer.planning import TaskPlanner
@@ -26,12 +29,51 @@ UNBOUNDED_ENGINES = ("pyperplan", "pyperplan-opt")
 
 
 def _quiet_environment():
+    _import_up()
     from unified_planning.environment import get_environment
 
     env = get_environment()
     env.credits_stream = None
     env.error_used_name = False
     return env
+
+
+def _import_up():
+    """Import Unified-Planning and its engines without ConfigSpace: UP 1.3 imports it (and with it
+    scipy.stats, most of UP's import time) only to describe engines' tuning parameters, which we
+    never ask for. While UP loads, a stand-in module answers; it imports the real one on first use."""
+    if "unified_planning.shortcuts" in sys.modules:
+        return
+    if "ConfigSpace" in sys.modules:  # already paid for
+        import unified_planning.shortcuts  # noqa: F401
+        return
+    stub = types.ModuleType("ConfigSpace")
+
+    def real():
+        if sys.modules.get("ConfigSpace") is stub:
+            del sys.modules["ConfigSpace"]
+        return importlib.import_module("ConfigSpace")
+
+    class ConfigurationSpace:  # what UP's modules import by name: the real class when called
+        def __new__(cls, *args, **kwargs):
+            return real().ConfigurationSpace(*args, **kwargs)
+
+    def attribute(name):  # any other name: the real module's (not dunders: the import machinery asks for those)
+        if name.startswith("__"):
+            raise AttributeError(name)
+        return getattr(real(), name)
+
+    stub.ConfigurationSpace = ConfigurationSpace
+    stub.__getattr__ = attribute
+    sys.modules["ConfigSpace"] = stub
+    try:
+        import unified_planning.shortcuts  # noqa: F401
+        from unified_planning.environment import get_environment
+
+        get_environment()  # its engine factory imports every installed engine (up_pyperplan too)
+    finally:
+        if sys.modules.get("ConfigSpace") is stub:
+            del sys.modules["ConfigSpace"]
 
 
 @dataclass
@@ -86,6 +128,7 @@ class UPTaskPlanner(TaskPlanner):
         """Check a plan with Unified-Planning's own SequentialPlanValidator."""
         if self.validate == "off":
             return super().validate_plan(model, state, plan)
+        _quiet_environment()
         from unified_planning.plans import ActionInstance, SequentialPlan
 
         builder = self._builder(model)
@@ -108,10 +151,16 @@ def _dump_pddl(problem, folder, call: int) -> None:
     writer.write_problem(str(folder / f"call-{call:03d}-problem.pddl"))
 
 
-def _up_validate(problem, plan) -> str:
-    from unified_planning.shortcuts import PlanValidator
+def _engine(name: str, params=None, checks: bool = False):
+    """UP's engine ``name``, made as its factory would but without the factory's credits notice, which
+    walks the whole call stack with source lines (20-50 ms for every engine made)."""
+    engine = _quiet_environment().factory.engine(name)(**(params or {}))
+    engine.error_on_failed_checks = checks  # the factory's setting: True only when it chose the engine
+    return engine
 
-    with PlanValidator(problem_kind=problem.kind) as validator:
+
+def _up_validate(problem, plan) -> str:
+    with _engine("sequential_plan_validator", checks=True) as validator:
         check = validator.validate(problem, plan)
     return "" if check.status.name == "VALID" else f"UP's validator rejected the plan: {check.reason}"
 
@@ -122,22 +171,25 @@ def _compile_for(engine, problem):
     from unified_planning.shortcuts import Compiler
 
     chain = []
-    for kind, feature in ((CompilationKind.QUANTIFIERS_REMOVING, ("EXISTENTIAL_CONDITIONS", "UNIVERSAL_CONDITIONS", "FORALL_EFFECTS")),
-                          (CompilationKind.CONDITIONAL_EFFECTS_REMOVING, ("CONDITIONAL_EFFECTS",)),
-                          (CompilationKind.DISJUNCTIVE_CONDITIONS_REMOVING, ("DISJUNCTIVE_CONDITIONS",)),
-                          (CompilationKind.NEGATIVE_CONDITIONS_REMOVING, ("NEGATIVE_CONDITIONS",))):
-        if engine.supports(problem.kind):
+    kind = problem.kind  # computed from scratch at every access: 10-20 ms
+    for compilation, feature in ((CompilationKind.QUANTIFIERS_REMOVING, ("EXISTENTIAL_CONDITIONS", "UNIVERSAL_CONDITIONS", "FORALL_EFFECTS")),
+                                 (CompilationKind.CONDITIONAL_EFFECTS_REMOVING, ("CONDITIONAL_EFFECTS",)),
+                                 (CompilationKind.DISJUNCTIVE_CONDITIONS_REMOVING, ("DISJUNCTIVE_CONDITIONS",)),
+                                 (CompilationKind.NEGATIVE_CONDITIONS_REMOVING, ("NEGATIVE_CONDITIONS",))):
+        if engine.supports(kind):
             break
-        if any(f in problem.kind.features for f in feature):
-            with Compiler(problem_kind=problem.kind, compilation_kind=kind) as compiler:
-                res = compiler.compile(problem, kind)
+        if any(f in kind.features for f in feature):
+            with Compiler(problem_kind=kind, compilation_kind=compilation) as compiler:
+                res = compiler.compile(problem, compilation)
             chain.append(res)
             problem = res.problem
-    if not engine.supports(problem.kind) and problem.quality_metrics:
+            kind = problem.kind
+    if not engine.supports(kind) and problem.quality_metrics:
         log.warning("the task planner '%s' ignores action costs: its plans may not be cheapest", engine.name)
         problem = problem.clone()
         problem.clear_quality_metrics()
-    return problem, chain
+        kind = problem.kind
+    return problem, chain, kind
 
 
 @functools.cache
@@ -158,15 +210,14 @@ def _sparse_problem_class():
 
 def _solve(engine_name, params, problem, timeout):
     from unified_planning.engines import PlanGenerationResultStatus as S
-    from unified_planning.shortcuts import OneshotPlanner
 
     # Fast Downward's driver writes output.sas into the working directory: concurrent runs in one
     # folder read each other's tasks. Each call gets a private folder.
     with tempfile.TemporaryDirectory(prefix="interlayer-fd-") as scratch, contextlib.chdir(scratch), \
-            OneshotPlanner(name=engine_name, params=params or None) as engine:
-        compiled, chain = _compile_for(engine, problem)
-        if not engine.supports(compiled.kind):
-            return "error", None, f"the engine '{engine_name}' cannot handle this problem's features ({sorted(compiled.kind.features)})"
+            _engine(engine_name, params) as engine:
+        compiled, chain, kind = _compile_for(engine, problem)
+        if not engine.supports(kind):
+            return "error", None, f"the engine '{engine_name}' cannot handle this problem's features ({sorted(kind.features)})"
         if not chain:
             compiled.__class__ = _sparse_problem_class()  # our own clone: only the PDDL writer reads it
         res = engine.solve(compiled, timeout=timeout)

@@ -136,17 +136,25 @@ def generators_for(host: PluginHost, model: TaskModel, config: dict) -> dict:
 
 
 def _generator(comp):
-    """A pose generator's candidates as a list, its faults attributed."""
+    """A pose generator's candidates, each computed when the search asks for it (a plain generator
+    depends only on its arguments), its faults attributed."""
 
     def candidates(problem, step, world, rng):
         with blame(comp.plugin, comp.label):
-            return list(comp.factory(problem, step, world, rng))
+            items = iter(comp.factory(problem, step, world, rng))
+        while True:
+            with blame(comp.plugin, comp.label):
+                cand = next(items, None)
+            if cand is None:
+                return
+            yield cand
 
     candidates.labels = {}
     return candidates
 
 
 def _guarded_epoch_state(cls, plugin: str):
+    # listed at once: the instance's state changes as it draws, so drawing order must not depend on the search
     def __call__(self, problem, step, world, rng):
         with blame(plugin, self.labels.get(step.action, f"pose generator '{cls.__name__}'")):
             return list(cls.__call__(self, problem, step, world, rng))

@@ -95,13 +95,20 @@ class InterfaceLayer:
         factory = self._generator(step.action)
         problem = self.model.problem
 
-        def candidates(rng):
+        def candidates(rng):  # drawn one at a time: TryRefine often needs only the first few
             with self.stats.timer("pose_generation"):
-                items = list(factory(problem, step, world, rng))
-            if not items:
+                items = iter(factory(problem, step, world, rng))
+            n = 0
+            while True:
+                with self.stats.timer("pose_generation"):
+                    cand = next(items, None)
+                if cand is None:
+                    break
+                n += 1
+                yield cand
+            if not n:
                 label = getattr(factory, "labels", {}).get(step.action, f"pose generator of '{step.action}'")
                 self.watch.generator_empty(label, index, step)
-            return items
 
         return PoseGenerator(candidates, stable_seed(self.settings.seed, self.epoch, index, step))
 

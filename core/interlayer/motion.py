@@ -110,8 +110,8 @@ class MotionPlan:
 
 @dataclass
 class MotionPlanner:
-    """Template method: ``plan`` validates the query, times it and extracts errors; a planner
-    plugin implements only ``_plan`` (return a list of configurations, or None)."""
+    """Template method: ``plan`` validates the query, tries the straight line, times it and extracts
+    errors; a planner plugin implements only ``_plan`` (return a list of configurations, or None)."""
 
     name: str = "planner"
     time_limit: float = 1.0
@@ -119,30 +119,54 @@ class MotionPlanner:
     options: dict = field(default_factory=dict)
     deadline: float | None = None  # time.perf_counter() at which the run's time limit ends (set by the loop)
     seed: int = 0  # the run's seed (set by the loop): a randomized planner derives its RNG seeds from it
+    # A planner that searches (sampling, optimisation): a collision-free straight line answers without
+    # the search, and so does a goal that collides with movables (see ``plan``). False for planners
+    # that draw one path of a fixed shape (a straight line, a tool line): they are quick anyway.
+    searches = True
 
-    def plan(self, query: MotionQuery, time_limit: float | None = None) -> MotionPlan:
+    def plan(self, query: MotionQuery, time_limit: float | None = None, straight: bool = True) -> MotionPlan:
+        """``straight=False``: run the search even if the straight line is collision-free (a caller
+        that found it touching an obstacle between two checks asks for another path)."""
         t0 = time.perf_counter()
         limit = self.time_limit if time_limit is None else time_limit
         if self.deadline is not None:
             limit = max(0.0, min(limit, self.deadline - t0))
-        space = query.space
-        start_ok, goal_ok = query.is_valid(query.start), query.is_valid(query.goal)
+        space, start, goal = query.space, query.start, query.goal
+        start_ok, goal_ok = query.is_valid(start), query.is_valid(goal)
         path = None
-        if start_ok and goal_ok and space.within_bounds(query.goal):
-            path = self._solve(query, False, limit)
+        if start_ok and goal_ok and space.within_bounds(goal):
+            if self.searches and straight and segment_valid(space, start, goal, query.is_valid):
+                path = [start, goal]  # no planner needed (a sampling planner takes long to find it)
+            else:
+                path = self._solve(query, False, limit)
         if path is not None:
             return MotionPlan(True, tuple(np.asarray(p, float) for p in path), time=time.perf_counter() - t0)
         # GetMPErrors: relax the movable objects and see what the relaxed path runs into.
-        if not (query.is_valid_static(query.start) and query.is_valid_static(query.goal)):
+        if not (query.is_valid_static(start) and query.is_valid_static(goal)):
             return MotionPlan(False, reason="start or goal collides with fixed obstacles", time=time.perf_counter() - t0)
-        if self.deadline is not None:
-            limit = max(0.0, min(limit, self.deadline - time.perf_counter()))
-        relaxed = self._solve(query, True, limit)
+        relaxed = None
+        if self.searches and segment_valid(space, start, goal, query.is_valid_static):
+            relaxed = [start, goal]
+        elif self.searches and not goal_ok and space.within_bounds(goal):
+            # Decided early: every path ends in the goal, so what collides with it obstructs; a relaxed
+            # path through a narrow passage (into a shelf) would cost the planner's whole time limit.
+            blockers = query.movables_at(goal)
+            if blockers:
+                return MotionPlan(False, obstructions=tuple(sorted(blockers)), time=time.perf_counter() - t0,
+                                  reason="the goal configuration collides with " + ", ".join(sorted(blockers)))
+        if relaxed is None:
+            if self.deadline is not None:
+                limit = max(0.0, min(limit, self.deadline - time.perf_counter()))
+            relaxed = self._solve(query, True, limit)
         if relaxed is None:
             return MotionPlan(False, reason="no path even with movable objects ignored", time=time.perf_counter() - t0)
+        dense = space.densify(relaxed)
         blockers: set = set()
-        for q in space.densify(relaxed):
+        for q in dense:
             blockers |= query.movables_at(q)
+        if not blockers and start_ok and goal_ok and space.within_bounds(goal) and all(map(query.is_valid, dense)):
+            # the first search ran out of time; the relaxed one found a path that avoids the movables too
+            return MotionPlan(True, tuple(np.asarray(p, float) for p in relaxed), time=time.perf_counter() - t0)
         reason = "blocked by " + ", ".join(sorted(blockers)) if blockers else "planner found no path in time"
         return MotionPlan(False, obstructions=tuple(sorted(blockers)), reason=reason, time=time.perf_counter() - t0)
 
@@ -165,6 +189,8 @@ def segment_valid(space: ConfigSpace, a, b, is_valid) -> bool:
 
 class InterpolatingPlanner(MotionPlanner):
     """A straight line in configuration space, checked at the space's resolution."""
+
+    searches = False
 
     def _plan(self, space, start, goal, is_valid, time_limit):
         return [start, goal] if segment_valid(space, start, goal, is_valid) else None

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from interlayer.refine import Candidate, Infeasible
+from interlayer.refine import Candidate, Infeasible, stable_seed
 
 from .scene import REST_GAP, table_top
 from .world import LIFT, PRE_GRASP, pose4, rz, trans, wrap
@@ -81,13 +81,13 @@ def check_graspable(problem, name):
     return found
 
 
-def _waypoints(geometry, world, arm, T, kind, rng, ignore):
+def _waypoints(geometry, world, arm, T, kind, rng, ignore, attempts=10):
     """(approach, raise) for tool pose T: ``approach`` is a list of IK solutions along the straight
     line from the pre-grasp (PRE_GRASP behind T along the tool x axis) to T, each seeded by the next
     one; ``raise`` lifts the grasp by LIFT, then withdraws it by PRE_GRASP (back along the approach
     for side grasps, further up for top grasps), out of shelves and cubbies. None if IK fails, the
-    joint path strays, or a piece of it hits a fixed obstacle."""
-    grasp = geometry.ik(world, arm, T, rng, ignore=ignore, gripper="open", attempts=10)
+    joint path strays, or a piece of it hits a fixed obstacle. ``attempts``: IK seeds for the grasp."""
+    grasp = geometry.ik(world, arm, T, rng, ignore=ignore, gripper="open", attempts=attempts)
     if grasp is None:
         return None
     line = _line(geometry, world, arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, grasp, rng, ignore, "open")
@@ -157,7 +157,7 @@ def _yaw(T):
     return math.atan2(x[1], x[0])
 
 
-def move_base(problem, step, world, rng, limit: int = 6, tries: int = 150, grasps=None):
+def move_base(problem, step, world, rng, limit: int = 6, tries: int = 60, grasps=None):
     to = step.args[0]
     geometry = problem.geometry
     info = geometry.refs.get(to)
@@ -186,6 +186,21 @@ def _annulus(rng, x, y, rmin=0.45, rmax=0.80):
     return (float(bx), float(by), float(wrap(math.atan2(y - by, x - bx) + rng.uniform(-0.3, 0.3))))
 
 
+def _free_bases(geometry, world, x, y, rng, tries):
+    """The current base, then up to ``tries`` collision-free bases of the annulus around (x, y) (at
+    most 20 samples each): an object in a cubby leaves a narrow free sector, and IK, not this check,
+    is what costs."""
+    yield tuple(world.base)
+    free = 0
+    for _ in range(20 * tries):
+        base = _annulus(rng, x, y)
+        if _base_free(geometry, world, base):
+            yield base
+            free += 1
+            if free >= tries:
+                return
+
+
 def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=None):
     from dataclasses import replace
 
@@ -196,15 +211,18 @@ def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=No
     P = world.objects[obj]
     x, y = P[0, 3], P[1, 3]
     kinds = _problem_grasps(problem, obj)
-    candidates = [tuple(world.base)] + [_annulus(rng, x, y) for _ in range(tries)]
+    # A stream of its own for each world: the loop seeds a step's generator alike whatever the steps
+    # before it did, and bases that fail (a cubby leaves few) would fail again after every backtrack.
+    rng = np.random.default_rng([int(rng.integers(2**32)), *stable_seed(world.base, sorted(world.held))])
     n = 0
-    for i, base in enumerate(candidates):
-        if not _base_free(geometry, world, base):
+    for i, base in enumerate(_free_bases(geometry, world, x, y, rng, tries)):
+        if i == 0 and not _base_free(geometry, world, base):
             continue
         w = replace(world, base=base)
         heading = _bearing(base, x, y)
         for kind, T in (grasps(w, heading, rng) if grasps else grasp_poses(geometry, obj, P, heading, kinds, rng, n_side=2)):
-            wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,))
+            # few IK seeds: most grasps found come from the first, and another base is cheaper than more seeds
+            wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,), attempts=3)
             if wps is not None:
                 n += 1
                 # the grasp found here travels with the world to pick, which offers it first
@@ -235,6 +253,7 @@ def _spots(problem, world, obj, loc, rng, tries):
         if loc == "table" and any(a - m <= x <= b + m and c - m <= y <= d + m for a, b, c, d in others.values()):
             continue
         P = pose4(x, y, z, 0.0)
+        geometry.sync(world)  # the search may have synced another world between two draws
         hits = geometry.cw.objects_overlap(obj, P)
         if hits & geometry.fixed:
             continue

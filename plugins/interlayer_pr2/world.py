@@ -396,8 +396,8 @@ class PR2Geometry:
     def _plan(self, planner, query, kind, group, segments, holding, world=None, acc=None, retries=2):
         """Plan; a path is then re-checked at the validator's resolution (RES / 5) and planned again
         (up to ``retries`` times) if that finds a contact the planner stepped over."""
-        for _ in range(retries + 1):
-            res = planner.plan(query)
+        for attempt in range(retries + 1):
+            res = planner.plan(query, straight=attempt == 0)
             if not res.ok or world is None or self.fine_ok(world, group, res.path, acc):
                 break
             self.stats.count("fine_check_replans")
