@@ -85,7 +85,8 @@ class InterfaceLayer:
             dropped = [s for k, s in enumerate(plan) if k in drop]
             plan = [s for k, s in enumerate(plan) if k not in drop]
         self.trace.emit("task_plan", call=self.task_calls, from_step=from_step, status=res.status, state_size=len(state),
-                        plan=plan_json(plan), time=round(res.time, 4), reason=res.reason, unneeded=plan_json(dropped))
+                        plan=plan_json(plan), time=round(res.time, 4), reason=res.reason,
+                        unneeded=plan_json(dropped))
         if res.status == "error":
             raise RuntimeError(res.reason)
         self.last_task_status = res.status

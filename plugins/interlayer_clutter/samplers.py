@@ -46,8 +46,8 @@ def _movables_on(geometry, world, arm, path, ignore, gripper="open"):
 class ClutterSampler(EpochState):
     """Clutter's pick and place generators and what they share within one epoch: grasp candidates
     sampled once per (object, arm, object pose) and re-ranked in each world, and the approach
-    corridors of the best grasps found so far, which put-downs keep clear of. The loop makes a fresh instance at every epoch,
-    so a reset discards both and samples anew."""
+    corridors of the best grasps found so far, which put-downs keep clear of. The loop makes a fresh
+    instance at every epoch, so a reset discards both and samples anew."""
 
     def __init__(self, seed):
         super().__init__(seed)
