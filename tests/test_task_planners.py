@@ -30,10 +30,13 @@ def test_engines_return_valid_plans(host, name):
     assert check_plan(model, model.init, res.plan) == ""
 
 
-def test_action_costs_reach_the_optimal_planner(host):
+@pytest.mark.parametrize("name", ["fast-downward-opt", "fast-downward-bjolp", "symk-opt"])
+def test_action_costs_reach_the_optimal_planner(host, name):
+    if name == "symk-opt":
+        pytest.importorskip("up_symk", reason="up-symk is an optional extra (pip install 'interlayer[symk]')")
     model = corridor(4)  # walking 3 steps costs 3, flying once costs 10
-    res = host["task_planners"].get("fast-downward-opt").factory({}).plan(model, model.init, 30)
-    assert [s.action for s in res.plan] == ["walk"] * 3 and res.cost == 3
+    res = host["task_planners"].get(name).factory({}).plan(model, model.init, 30)
+    assert [s.action for s in res.plan] == ["walk"] * 3 and res.cost == 3 == model.cost(res.plan)
 
 
 def test_custom_search_string_and_unsolvable_state(host):

@@ -445,7 +445,8 @@ class _Explainer:
                  ("failed attempts", sum(1 for a in attempts if not a.get("ok"))),
                  ("failures translated", n("failure")),
                  ("dead ends", n("dead_end")), ("resets", n("reset")),
-                 ("plan length", len(r.get("plan") or []) if r.get("status") == "solved" else "-")]
+                 ("plan length", len(r.get("plan") or []) if r.get("status") == "solved" else "-"),
+                 ("plan cost", r.get("plan_cost") if r.get("plan_cost") is not None else "-")]
         html = ['<h2>Summary</h2><div class="cards">']
         html += [f"<div class=card><b>{escape(str(v))}</b><span>{escape(k)}</span></div>" for k, v in cards]
         html.append("</div>")
@@ -541,8 +542,9 @@ class _Explainer:
                         added = sum(1 for m in marks.values() if m == "added")
                         keep = f"keeps the first {frm} step(s)" if frm else "a new plan from the start"
                         note = f" <span class=muted>- {keep}; {added} step(s) added, {len(removed)} dropped</span>"
+                    cost = f", cost {e['cost']:g}" if e.get("cost") is not None else ""
                     html.append(f'<div class="ev task">{t}<h3>Task plan #{e.get("call")} '
-                                f'<span class="muted">(planning from step {frm}, {e.get("time", 0):.2f} s)</span>{note}</h3>'
+                                f'<span class="muted">(planning from step {frm}, {e.get("time", 0):.2f} s{cost})</span>{note}</h3>'
                                 + _plan_list(new_full, 0, marks, removed) + "</div>")
                     pending_task = new_full
                 else:

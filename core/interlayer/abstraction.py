@@ -76,6 +76,10 @@ class TaskModel:
     def goal_holds(self, state: frozenset) -> bool:
         return logic.holds(self.goal, state, {}, self.objects_of)
 
+    def cost(self, plan) -> int:
+        """The plan's cost: the sum of its actions' costs (what a cost-optimal planner minimises)."""
+        return sum(self.actions[s.action].cost for s in plan)
+
     def task_args(self, step: GroundStep) -> tuple:
         """The arguments the task planner sees (dropped parameters removed)."""
         binding = self.binding(step)

@@ -28,7 +28,8 @@ def progress_printer(verbose: bool):
         if kind == "task_plan":
             if e["status"] == "solved":
                 steps = "; ".join(f"{s['action']}({', '.join(s['args'])})" for s in e["plan"])
-                log(f"{t} task plan #{e['call']} from step {e['from_step']} ({e['time']:.2f} s): {steps}")
+                cost = f", cost {e['cost']:g}" if e.get("cost") is not None else ""
+                log(f"{t} task plan #{e['call']} from step {e['from_step']} ({e['time']:.2f} s{cost}): {steps}")
             else:
                 log(f"{t} task planner call #{e['call']}: {e['status']} {e['reason']}".rstrip())
         elif kind == "failure":

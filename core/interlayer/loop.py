@@ -86,6 +86,7 @@ class InterfaceLayer:
             plan = [s for k, s in enumerate(plan) if k not in drop]
         self.trace.emit("task_plan", call=self.task_calls, from_step=from_step, status=res.status, state_size=len(state),
                         plan=plan_json(plan), time=round(res.time, 4), reason=res.reason,
+                        cost=self.model.cost(self.plan[:from_step] + plan) if res.status == "solved" else None,
                         unneeded=plan_json(dropped))
         if res.status == "error":
             raise RuntimeError(res.reason)
@@ -181,6 +182,7 @@ class InterfaceLayer:
         self.stats.times["interface"] = max(0.0, self.stats.times["total"] - accounted)
         self.trace.emit("end", status=status, reason=reason)
         result = Result(status=status, reason=reason, plan=list(self.plan) if status == "solved" else [],
+                      plan_cost=self.model.cost(self.plan) if status == "solved" else None,
                       learned_facts=list(self.learned), replans=self.replans, task_planner_calls=self.task_calls,
                       times=dict(self.stats.times), counts=dict(self.stats.counts), seed=self.settings.seed,
                       refinement=refinement, trace=self.trace, problem=self.model.problem, model=self.model)

@@ -32,6 +32,9 @@ class Failure:
     kind: str  # a key of the action's learn templates ("obstruction"), or another kind ("ik", "unreachable")
     objects: tuple = ()  # the obstructing objects, for "obstruction"
     detail: str = ""
+    # True when no other instantiation of the earlier steps can change the verdict (a dedicated module's,
+    # e.g. stackability from diameters): TryRefine then stops instead of backtracking over them
+    static: bool = False
 
     def to_json(self) -> dict:
         return {"kind": self.kind, "objects": list(self.objects), "detail": self.detail}
@@ -213,6 +216,8 @@ class Refiner:
             elif partial and outcome.failure is not None:  # lines 13-14
                 prefix_out = {k: v for k, v in outcomes.items() if k < i}
                 yield PartialRefinement(prefix_out, worlds[i], i, outcome.failure, cand)
+            if not outcome.ok and outcome.failure is not None and outcome.failure.static:
+                return None
             # line 15: the next iteration draws the next candidate of step i
         if i >= n:  # lines 16-17
             return Refinement(outcomes)

@@ -126,6 +126,12 @@ class _State:
         # articulated bodies (geometry.bodies): joint values, and the objects resting on their links
         self.joints = {b: tuple(float(x) for x in v) for b, v in (world.get("joints") or {}).items()}
         self.riders = dict(getattr(_initial_world(geometry), "riders", {}) or {})
+        # objects moving rigidly with the base (a tray carried with both hands): object -> base_T_object
+        self.carrying = {k: M for k, v in (world.get("carrying") or {}).items() if (M := _mat(v)) is not None}
+
+    def base_matrix(self):
+        x, y, th = self.base
+        return _pose4(x, y, 0.0, th)
 
     def q(self, base=None):
         r = self.robot
@@ -164,6 +170,9 @@ class _State:
 
     def object_poses(self, q=None) -> dict:
         out = dict(self.objects)
+        if self.carrying:
+            B = self.base_matrix()
+            out.update({k: B @ rel for k, rel in self.carrying.items()})
         if self.held:
             q = self.q() if q is None else q
             for arm, (name, G) in self.held.items():
@@ -480,6 +489,17 @@ def animation_frames(geometry, scene, trajectory) -> list:
                         state.opening.pop(arm, None)
                         state.objects.pop(obj, None)
                         state.held[arm] = (obj, G)
+                    frames += [frame(i)] * PAUSE
+                elif kind == "carry":  # the listed objects move with the base from now on
+                    Binv = np.linalg.inv(state.base_matrix())
+                    for obj in seg.get("objects") or []:
+                        if obj in state.objects:
+                            state.carrying[obj] = Binv @ state.objects.pop(obj)
+                elif kind == "set_down":
+                    for obj, P in (seg.get("objects") or {}).items():
+                        state.carrying.pop(obj, None)
+                        if _mat(P) is not None:
+                            state.objects[obj] = _mat(P)
                     frames += [frame(i)] * PAUSE
                 elif kind == "release":
                     arm, obj = seg.get("arm"), seg.get("object")

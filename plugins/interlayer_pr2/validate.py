@@ -25,8 +25,13 @@ def _pose_close(A, B, pos=POS_TOL, rot=ROT_TOL):
     return np.linalg.norm(A[:3, 3] - B[:3, 3]) <= pos and angle <= rot
 
 
-def validate_trajectory(geometry, plan, trajectory) -> list[str]:
+def validate_trajectory(geometry, plan, trajectory, rules=None) -> list[str]:
+    """``rules``: a domain's additions (a module or object), each optional: ``event(geometry, world, seg,
+    at) -> (world, why)`` for segment kinds this module does not know, ``motion(geometry, world, seg, at)
+    -> why`` before each motion, ``rests(geometry, world, obj, P) -> why`` in place of "resting upright on
+    the table", and ``goal(geometry, world) -> [why]`` in place of this module's goal check."""
     errors: list[str] = []
+    rule = lambda name: getattr(rules, name, None)  # noqa: E731
     robot = geometry.robot
     world = geometry.initial_world()
     init = trajectory.get("initial", {})
@@ -38,6 +43,9 @@ def validate_trajectory(geometry, plan, trajectory) -> list[str]:
         for k, seg in enumerate(data.get("segments", [])):
             kind = seg.get("kind")
             at = f"{where} segment {k} ({kind})"
+            why = rule("motion")(geometry, world, seg, at) if "points" in seg and rule("motion") else None
+            if why:
+                return errors + [why]
             if "points" in seg and seg.get("body"):
                 world, why = _check_pull(geometry, world, seg, at)
                 if why:
@@ -101,24 +109,38 @@ def validate_trajectory(geometry, plan, trajectory) -> list[str]:
                 P = robot.tool_pose(q, arm) @ world.held[arm][1]
                 if not _pose_close(P, seg["pose"]):
                     return errors + [f"{at}: {obj} is released away from the gripper (teleported)"]
-                spec = geometry.specs[obj]
-                bottom = P[2, 3] - spec.height / 2
-                upright = P[2, 2] > math.cos(math.radians(2))
-                xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
-                on_table = xmin <= P[0, 3] <= xmax and ymin <= P[1, 3] <= ymax
-                top = table_top(geometry.layout)
-                if not (upright and on_table and top <= bottom <= top + REST_GAP + 0.005):
-                    return errors + [f"{at}: {obj} is released at {np.round(P[:3, 3], 3).tolist()}, not resting upright "
-                                     f"on the table"]
+                why = rule("rests")(geometry, world, obj, P) if rule("rests") else _on_table(geometry, obj, P)
+                if why:
+                    return errors + [f"{at}: {obj} is released at {np.round(P[:3, 3], 3).tolist()}, {why}"]
                 held = {a: v for a, v in world.held.items() if a != arm}  # release = open the gripper + detach
                 world = replace(world, objects={**world.objects, obj: P}, held=held, grippers={**world.grippers, arm: "open"})
                 if geometry.in_collision(world):
                     pairs = geometry.cw.collision_pairs(geometry.sync(world))
                     return errors + [f"{at}: {obj} released into a collision: {_pairs(pairs)}"]
+            elif rule("event"):
+                world, why = rule("event")(geometry, world, seg, at)
+                if why:
+                    return errors + [why]
             else:
                 return errors + [f"{at}: unknown segment kind {kind!r}"]
-    errors += _check_goal(geometry, world)
+    errors += rule("goal")(geometry, world) if rule("goal") else _check_goal(geometry, world)
     return errors
+
+
+def _on_table(geometry, obj, P) -> str:
+    """'' if an object at P rests upright on the table, else why not."""
+    spec = geometry.specs[obj]
+    bottom = P[2, 3] - spec.height / 2
+    xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
+    on_table = xmin <= P[0, 3] <= xmax and ymin <= P[1, 3] <= ymax
+    top = table_top(geometry.layout)
+    if not (upright(P) and on_table and top <= bottom <= top + REST_GAP + 0.005):
+        return "not resting upright on the table"
+    return ""
+
+
+def upright(P) -> bool:
+    return P[2, 2] > math.cos(math.radians(2))
 
 
 def _check_motion(geometry, world, seg, at):

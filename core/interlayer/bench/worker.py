@@ -91,10 +91,9 @@ def plan(spec: dict) -> dict:
     except UserError as exc:
         return {"status": "error", "reason": str(exc)}
     data = result.to_json()
-    costs = {a.name: a.cost for a in result.model.actions.values()} if result.model else {}
     return {"status": result.status, "reason": result.reason, "times": data["times"],
             "plan_length": len(result.plan) if result.solved else None,
-            "plan_cost": sum(costs.get(s.action, 1) for s in result.plan) if result.solved else None,
+            "plan_cost": result.plan_cost,
             "replans": result.replans, "task_planner_calls": result.task_planner_calls, "versions": versions(host)}
 
 
