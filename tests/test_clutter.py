@@ -106,3 +106,46 @@ def test_front_approach_keeps_the_base_on_the_near_side_and_the_target_reachable
     assert free.extra["base_limits"][0][1] > free.regions["table"][1]  # free: the far side is allowed
     with pytest.raises(UserError, match="problem.approach"):
         _problem(["problem.approach=back"])
+
+
+def _holding(problem, world, sampler, obj, arm):
+    """``world`` with ``obj`` in ``arm``'s hand (carried), grasped as the sampler's best candidate grasps it."""
+    from dataclasses import replace
+
+    import numpy as np
+    from interlayer.domain import GroundStep
+
+    cand = next(iter(sampler(problem, GroundStep("pick", (obj, arm, "x", "bp", "gp", "gp2")), world, None)))
+    G = np.linalg.inv(np.asarray(cand.values["gp"])) @ world.objects[obj]
+    world = replace(world, objects={k: v for k, v in world.objects.items() if k != obj}, held={arm: (obj, G)})
+    return world.with_arm(arm, problem.geometry.carry(world, arm, np.random.default_rng(0)))
+
+
+def test_put_downs_keep_clear_of_the_approaches_ranked_in_the_epoch(host):
+    """Every object whose grasps the epoch ranked (not only the target) has its best approaches kept
+    clear by the put-down sampler: an object put down there would block that pick again (the loop
+    used to learn the same obstruction, move the blocker, and put it back in the way, for ever)."""
+    import numpy as np
+    from interlayer.domain import GroundStep
+    from interlayer_clutter.samplers import CORRIDOR, ClutterSampler, _pose_key
+
+    problem = _problem(["problem.objects=15", "planner.seed=0"])
+    target = problem.geometry.layout.target
+    other, held = [o.name for o in problem.geometry.layout.objects if o.name != target][:2]
+    sampler = ClutterSampler([0])
+    world = _holding(problem, problem.geometry.initial_world(), sampler, held, "left")
+    list(sampler(problem, GroundStep("pick", (other, "right", "left", "bp", "gp", "gp2")), world, None))
+    # the standing object's approaches count; those of the object in the hand no longer do
+    expected = sampler.corridors[(other, "right")][1]
+    corridors = sampler.corridors_for(world, held, target)
+    assert len(corridors) == len(expected) and all(np.allclose(xy, f) for (_, xy), f in zip(corridors, expected))
+
+    place = GroundStep("place", (held, "left", "s1", "bp", "pd"))
+
+    def spots():
+        return [(c.values["object_pose"][0][3], c.values["object_pose"][1][3])
+                for c in sampler(problem, place, world, np.random.default_rng(5))]
+
+    best = spots()[0]
+    sampler.corridors[(other, "left")] = (_pose_key(world.objects[other]), [[best]])  # an approach over that spot
+    assert all(np.hypot(x - best[0], y - best[1]) >= CORRIDOR for x, y in spots())
