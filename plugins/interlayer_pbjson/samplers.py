@@ -6,7 +6,7 @@
   otherwise a stable placement on the step's surface: a point inside its polygon
   (the object's whole footprint inside, for tables and regions; its centre over the top of an object
   it is stacked on), clear of fixed obstacles, other objects and the goal poses of others, and out of
-  the target's best approaches (as Clutter's put-downs); for
+  the best approaches found so far (Clutter's corridors); for
   ``place_at_goal`` the goal pose itself (and its symmetric yaws). Then a base pose, IK, the lowering
   and the retreat; candidates with fewer objects in the way first.
 * ``pbjson:go_home``: the start configuration.
@@ -18,7 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 from interlayer.refine import Candidate
-from interlayer_clutter.samplers import CORRIDOR, ClutterSampler, _base_free, _base_near, _coarse, _fmt, _movables_on
+from interlayer_clutter.samplers import ClutterSampler, _base_free, _base_near, _coarse, _fmt, _in_corridors, _movables_on
 from interlayer_pr2.scene import REST_GAP
 from interlayer_pr2.world import pose4
 
@@ -60,6 +60,7 @@ class PBSampler(ClutterSampler):
                     if k != obj]
         below = geometry.surfaces[surf].body  # the object stacked on (kind "top"): not in the way
         others = [(Q[0, 3], Q[1, 3], _radius(geometry.specs[k])) for k, Q in world.objects.items() if k not in (obj, below)]
+        corridors = self.corridors_for(world, obj, geometry.layout.target)  # the best approaches found so far
         r = _radius(o)
         xs, ys = [p[0] for p in poly], [p[1] for p in poly]
         spots = []
@@ -71,7 +72,7 @@ class PBSampler(ClutterSampler):
             d = min((math.hypot(x - a, y - b) - r - s for a, b, s in others), default=1.0)
             if d < 0.01:
                 continue
-            spots.append((min(d, 0.25) - self.in_corridor(x, y) + 0.1 * rng.random(), float(x), float(y)))
+            spots.append((min(d, 0.25) - _in_corridors(x, y, corridors) + 0.1 * rng.random(), float(x), float(y)))
             if len(spots) >= tries:
                 break
         spots.sort(key=lambda s: -s[0])
@@ -84,15 +85,6 @@ class PBSampler(ClutterSampler):
 
         yield from self._putdowns(problem, world, obj, arm, step.args[4], step.args[5],
                                   [(x, y, lambda h, x=x, y=y: pose_at(x, y, h)) for _, x, y in spots], rng)
-
-    def in_corridor(self, x, y) -> float:
-        """How much a spot stands in the way of the target's best approaches (see Clutter's pick)."""
-        penalty = 0.0
-        for cands in self.corridors.values():
-            for rank, (_, xy) in enumerate(cands):
-                if any(math.hypot(x - a, y - b) < CORRIDOR for a, b in xy):
-                    penalty = max(penalty, 2.0 if rank == 0 else 0.5)
-        return penalty
 
     def place_at_goal(self, problem, step, world, rng):
         obj, arm = step.args[0], step.args[1]
