@@ -1,4 +1,4 @@
-"""Clutter-N (BENCHMARKS.md section 2) and the pybullet-planning JSON loader (section 3)."""
+"""Clutter-N (BENCHMARKS.md section 2); the pybullet-planning JSON loader is tested in test_pbjson.py."""
 from pathlib import Path
 
 import pytest
@@ -7,10 +7,6 @@ from interlayer.errors import UserError
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "examples" / "clutter.toml"
-SHARED = Path(__file__).resolve().parents[2] / "shared"
-JSON_DIR = SHARED / "benchmarks" / "pybullet-planning-json"
-needs_shared = pytest.mark.skipif(not JSON_DIR.is_dir(), reason=f"{JSON_DIR} (beside the checkout) is absent: "
-                                  "the pybullet-planning JSON problems are not part of the project")
 
 
 def _problem(overrides):
@@ -58,44 +54,6 @@ def test_clutter40_seed0_solves_and_validates(tmp_path):
     assert result.status == "solved", result.reason
     api.write_outputs(result, tmp_path)
     assert api.validate(tmp_path) == []
-
-
-@needs_shared
-def test_json_loader_reads_the_papers_scene(caplog):
-    import logging
-
-    from interlayer.plugins import PluginHost
-
-    with caplog.at_level(logging.WARNING):
-        problem = PluginHost().load_problem(JSON_DIR / "srivastava_table_r040.json", {}, 0)
-    layout = problem.geometry.layout
-    assert len(layout.objects) == 40 and layout.target == "object1"
-    assert layout.grasps == ("side",)
-    assert all(o.shape == "cylinder" and abs(o.size[0] - 0.04) < 1e-9 for o in layout.objects)
-    assert abs(layout.extra["table_top"] - 0.8) < 1e-9
-    assert problem.goal == "(or (Holding object1 left) (Holding object1 right))"
-    assert "goal_config" in caplog.text and "ignored" in caplog.text
-
-
-@needs_shared
-def test_json_other_goal_kinds_are_a_clear_error():
-    from interlayer.plugins import PluginHost
-
-    with pytest.raises(UserError, match="goal_regions"):
-        PluginHost().load_problem(JSON_DIR / "blocked.json", {}, 0)
-
-
-@needs_shared
-def test_papers_scene_as_shipped_is_unsolvable_by_gripper_width(tmp_path):
-    import time
-
-    t0 = time.perf_counter()
-    result = api.solve(str(JSON_DIR / "srivastava_table.json"))
-    assert result.status == "unsolvable"
-    assert "0.100 m wide" in result.reason and "gripper opens only" in result.reason
-    assert time.perf_counter() - t0 < 30
-    api.write_outputs(result, tmp_path)
-    assert "problem" in (tmp_path / "config.toml").read_text()  # rebuildable: problem.file is recorded
 
 
 def test_a_reset_reseeds_the_clutter_pick_generator(host):
@@ -148,3 +106,46 @@ def test_front_approach_keeps_the_base_on_the_near_side_and_the_target_reachable
     assert free.extra["base_limits"][0][1] > free.regions["table"][1]  # free: the far side is allowed
     with pytest.raises(UserError, match="problem.approach"):
         _problem(["problem.approach=back"])
+
+
+def _holding(problem, world, sampler, obj, arm):
+    """``world`` with ``obj`` in ``arm``'s hand (carried), grasped as the sampler's best candidate grasps it."""
+    from dataclasses import replace
+
+    import numpy as np
+    from interlayer.domain import GroundStep
+
+    cand = next(iter(sampler(problem, GroundStep("pick", (obj, arm, "x", "bp", "gp", "gp2")), world, None)))
+    G = np.linalg.inv(np.asarray(cand.values["gp"])) @ world.objects[obj]
+    world = replace(world, objects={k: v for k, v in world.objects.items() if k != obj}, held={arm: (obj, G)})
+    return world.with_arm(arm, problem.geometry.carry(world, arm, np.random.default_rng(0)))
+
+
+def test_put_downs_keep_clear_of_the_approaches_ranked_in_the_epoch(host):
+    """Every object whose grasps the epoch ranked (not only the target) has its best approaches kept
+    clear by the put-down sampler: an object put down there would block that pick again (the loop
+    used to learn the same obstruction, move the blocker, and put it back in the way, for ever)."""
+    import numpy as np
+    from interlayer.domain import GroundStep
+    from interlayer_clutter.samplers import CORRIDOR, ClutterSampler, _pose_key
+
+    problem = _problem(["problem.objects=15", "planner.seed=0"])
+    target = problem.geometry.layout.target
+    other, held = [o.name for o in problem.geometry.layout.objects if o.name != target][:2]
+    sampler = ClutterSampler([0])
+    world = _holding(problem, problem.geometry.initial_world(), sampler, held, "left")
+    list(sampler(problem, GroundStep("pick", (other, "right", "left", "bp", "gp", "gp2")), world, None))
+    # the standing object's approaches count; those of the object in the hand no longer do
+    expected = sampler.corridors[(other, "right")][1]
+    corridors = sampler.corridors_for(world, held, target)
+    assert len(corridors) == len(expected) and all(np.allclose(xy, f) for (_, xy), f in zip(corridors, expected))
+
+    place = GroundStep("place", (held, "left", "s1", "bp", "pd"))
+
+    def spots():
+        return [(c.values["object_pose"][0][3], c.values["object_pose"][1][3])
+                for c in sampler(problem, place, world, np.random.default_rng(5))]
+
+    best = spots()[0]
+    sampler.corridors[(other, "left")] = (_pose_key(world.objects[other]), [[best]])  # an approach over that spot
+    assert all(np.hypot(x - best[0], y - best[1]) >= CORRIDOR for x, y in spots())

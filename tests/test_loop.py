@@ -389,3 +389,92 @@ def test_shortcut_compares_worlds_structurally():
     assert not same(a, W((1.0, 2.0, 0.6), {"o": np.eye(4), "p": ("grasp", np.ones(3))}))
     assert not same(a, W((1.0, 2.0, 0.5), {"o": np.eye(4)}))
     assert not same(a, W((1.0, 2.0, 0.5), {"o": 2 * np.eye(4), "p": ("grasp", np.ones(3))}))
+
+
+def test_the_refinement_cache_keys_on_the_candidate_not_its_index(host):
+    """A generator with epoch state may order its candidates differently from one call to the next:
+    the partial pass must refine the candidate it is given, not reuse the outcome of the candidate
+    that had the same index in the error-free pass."""
+    from interlayer.refine import EpochState
+
+    class Reordering(EpochState):
+        calls = 0
+
+        def __call__(self, problem, step, world, rng):
+            self.calls += 1
+            for label in ("c0", "c1") if self.calls == 1 else ("c1", "c0"):
+                yield Candidate((label,), {}, label)
+
+    def script(item, label, world, n):  # z (untakeable) blocks the candidate c0 only
+        return Failure("obstruction", ("z",)) if label == "c0" else None
+
+    result, _ = run(script, gen=Reordering, host=host, max_refine_attempts=1, time_limit=10.0)
+    assert result.status == "solved", result.reason
+    partial = [(e["candidate"], e["ok"]) for e in events(result, "attempt") if e["mode"] == "partial"]
+    assert partial and partial[0] == ("c1", True)
+
+
+MOVABLE = DomainSpec(
+    name="scripted-shift",
+    types={"item": None},
+    continuous_types=("pose",),
+    predicates={"Done": ("item",), "IsGP": ("pose", "item"), "Obstructs": ("item", "pose", "item")},
+    skolems=(Skolem("gp", ("item",), "pose", "IsGP"),),
+    geometric=("Obstructs",),
+    actions=(
+        ActionSpec("take", (("?x", "item"), ("?p", "pose")),
+                   "(and (not (Done ?x)) (IsGP ?p ?x) (forall (?o - item) (not (Obstructs ?o ?p ?x))))",
+                   "(Done ?x)", learn={"obstruction": ("(Obstructs ?blocker ?p ?x)",)}, pose_generator="scripted"),
+        # moving an object elsewhere undoes what was learned about it (it may come back in the way)
+        ActionSpec("shift", (("?x", "item"),), "(not (Done ?x))",
+                   "(forall (?o - item ?q - pose) (not (Obstructs ?x ?q ?o)))", pose_generator="scripted"),
+    ),
+)
+
+
+def test_a_fact_learned_again_and_again_in_an_epoch_is_not_replanned_on(host):
+    """b stands in a's way however often it is shifted: the loop would learn (Obstructs b gp_a a),
+    shift b, and learn it again for ever within one epoch. After RELEARN_LIMIT learnings it tries
+    the other failures instead, and resets when none teaches anything new."""
+    from interlayer.loop import RELEARN_LIMIT
+
+    problem = Problem(MOVABLE, {"a": "item", "b": "item"}, frozenset(), "(Done a)",
+                      ScriptedGeometry(lambda item, *a: Failure("obstruction", ("b",)) if item == "a" else None), {})
+    task = host["task_planners"].get("fast-downward").factory({})
+    translators = [("templates", host["failure_translators"].get("templates").factory)]
+    layer = InterfaceLayer(abstract(problem), task, None, {"take": generator(), "shift": generator()}, translators,
+                           LoopSettings(time_limit=5.0))
+    result = layer.solve()
+    assert result.status == "timeout"
+    assert events(result, "recurring") and events(result, "reset")
+    learned = by_epoch(result, "failure", lambda e: e["facts"])
+    counts = [facts.count("(Obstructs b gp_a a)") for facts in learned.values()]
+    assert max(counts) == RELEARN_LIMIT and len(counts) >= 2  # the last epoch may end early (time limit)
+
+
+def test_steps_the_goal_does_not_need_are_dropped_from_a_task_plan(host):
+    """Greedy action elimination: a satisficing task planner's detour (taking b, which nothing needs)
+    is dropped before refinement; a step the goal needs is kept. The planner here is a stub that
+    returns a fixed plan: this test is about what the loop does with a plan."""
+    from interlayer.planning import TaskPlanResult
+    from interlayer.shortcut import unneeded_steps
+
+    problem = Problem(SPEC, {i: "item" for i in "ab"}, frozenset(("Takeable", t) for t in "ab"), "(Done a)",
+                      ScriptedGeometry(lambda *a: None), {})
+    model = abstract(problem)
+    detour = [GroundStep("take", ("b", "gp_b")), GroundStep("take", ("a", "gp_a"))]
+    assert unneeded_steps(detour, model, model.init) == [0]
+    assert unneeded_steps(detour[1:], model, model.init) == []
+
+    class Detouring:
+        def plan(self, model, state, timeout):
+            return TaskPlanResult("solved", detour, 0.0)
+
+        def validate_plan(self, model, state, plan):
+            return ""
+
+    layer = InterfaceLayer(model, Detouring(), None, {"take": generator()}, [], LoopSettings(time_limit=5.0))
+    result = layer.solve()
+    assert result.status == "solved" and [str(s) for s in result.plan] == ["take(a, gp_a)"]
+    assert events(result, "task_plan")[0]["unneeded"] == [{"action": "take", "args": ["b", "gp_b"]}]
+    assert result.counts["refinement_attempts"] == 1

@@ -40,6 +40,9 @@ def progress_printer(verbose: bool):
         elif kind == "dead_end":
             why = "the task planner timed out on it" if e.get("status") == "timeout" else "it has no plan"
             log(f"{t} the updated state at step {e['step']} is a dead end ({why}); trying the next partial refinement")
+        elif kind == "recurring":
+            log(f"{t} the failure at step {e['step']} recurs ({', '.join(e['facts'])} learned {e['limit']} times in "
+                f"this epoch already); trying the next partial refinement")
         elif kind == "reset":
             log(f"{t} reset (epoch {e['epoch']}): {e['reason']}; learned facts cleared, generators reseeded")
         elif kind == "refined":

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import time
+from collections import Counter
 from dataclasses import dataclass
 
 from . import logic
@@ -19,6 +20,12 @@ class Interrupted(KeyboardInterrupt):
     def __init__(self, result):
         super().__init__("interrupted")
         self.result = result
+
+
+# A fact learned this many times in one epoch is not learned again in it: the action that deleted it
+# (e.g. picking the blocker) keeps bringing it back (putting the blocker down in the way again), and
+# replanning on it once more would only repeat that cycle.
+RELEARN_LIMIT = 2
 
 
 @dataclass(frozen=True)
@@ -52,6 +59,7 @@ class InterfaceLayer:
         self.epoch = 0  # bumped by every MaxTrajCount reset: reseeds the pose generators
         self._epoch_states: dict = {}  # EpochState class -> its instance for this epoch
         self.learned: list = []  # facts learned in this epoch (a reset clears them)
+        self.times_learned: Counter = Counter()  # fact -> how often it was learned in this epoch
         self.task_calls = 0
         self.replans = 0
         self.watch = ProgressWatch(model)
@@ -69,13 +77,21 @@ class InterfaceLayer:
         self.task_calls += 1
         with self.stats.timer("task_planning"):
             res = self.task_planner.plan(self.model, state, min(self.settings.task_timeout, self._time_left()))
+        plan, dropped = list(res.plan), []
+        if res.status == "solved":
+            from .shortcut import unneeded_steps
+
+            drop = unneeded_steps(plan, self.model, state)
+            dropped = [s for k, s in enumerate(plan) if k in drop]
+            plan = [s for k, s in enumerate(plan) if k not in drop]
         self.trace.emit("task_plan", call=self.task_calls, from_step=from_step, status=res.status, state_size=len(state),
-                        plan=plan_json(res.plan), time=round(res.time, 4), reason=res.reason,
-                        cost=self.model.cost(self.plan[:from_step] + list(res.plan)) if res.status == "solved" else None)
+                        plan=plan_json(plan), time=round(res.time, 4), reason=res.reason,
+                        cost=self.model.cost(self.plan[:from_step] + plan) if res.status == "solved" else None,
+                        unneeded=plan_json(dropped))
         if res.status == "error":
             raise RuntimeError(res.reason)
         self.last_task_status = res.status
-        return list(res.plan) if res.status == "solved" else None
+        return plan if res.status == "solved" else None
 
     def make_generator(self, index: int, step: GroundStep, world) -> PoseGenerator:
         factory = self._generator(step.action)
@@ -113,6 +129,7 @@ class InterfaceLayer:
         self.epoch += 1
         self._epoch_states.clear()
         self.learned = []
+        self.times_learned.clear()
 
     def translate(self, failure, step: GroundStep) -> set:
         facts = set()
@@ -212,9 +229,14 @@ class InterfaceLayer:
                 facts -= states[f]
                 if not facts:
                     continue  # nothing new to tell the task planner: try the next failure
+                if all(self.times_learned[a] >= RELEARN_LIMIT for a in facts):
+                    self.trace.emit("recurring", step=f, action=str(self.plan[f]), limit=RELEARN_LIMIT,
+                                    facts=[logic.atom_str(a) for a in sorted(facts)])
+                    continue  # learned and undone again and again in this epoch: try the next failure
                 traj_count += 1
                 state = states[f] | facts  # line 9
                 self.learned += [a for a in sorted(facts) if a not in self.learned]
+                self.times_learned.update(facts)
                 self.trace.emit("failure", step=f, action=str(self.plan[f]), candidate=partial.candidate.label,
                                 failure=partial.failure.to_json(), facts=[logic.atom_str(a) for a in sorted(facts)],
                                 world=self.geometry.snapshot(partial.world))

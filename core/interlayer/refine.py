@@ -117,6 +117,20 @@ class EpochState:
         raise NotImplementedError
 
 
+def fingerprint(candidate: Candidate):
+    """A hashable copy of a candidate's waypoints, values and label (arrays by their bytes)."""
+    def freeze(v):
+        if isinstance(v, np.ndarray):
+            return (v.dtype.str, v.shape, v.tobytes())
+        if isinstance(v, (list, tuple)):
+            return tuple(freeze(x) for x in v)
+        if isinstance(v, Mapping):
+            return tuple(sorted((str(k), freeze(x)) for k, x in v.items()))
+        return v
+
+    return freeze(candidate.waypoints), freeze(candidate.values), candidate.label
+
+
 def stable_seed(*parts) -> list[int]:
     return [zlib.crc32(str(p).encode()) for p in parts]
 
@@ -164,7 +178,7 @@ class Refiner:
         (StopIteration.value) is a Refinement, or None when the search failed or ran out."""
         n = len(plan)
         worlds, outcomes = {step: world0}, dict(prefix)
-        chain: list[int] = []  # candidate index per step from `step`: the cache key of a branch
+        chain: list = []  # what was refined at each step from `step`: with world0, what step i's world depends on
         gens = {step: self.make_generator(step, plan[step], world0)} if step < n else {}
         i, failures = step, {}
         while step <= i < n:  # line 4
@@ -179,7 +193,9 @@ class Refiner:
                     chain.pop()
                 outcomes.pop(i, None)
                 continue
-            key = (tuple(plan[step : i + 1]), tuple(chain), gen.index, id(world0))
+            # an outcome depends on the candidate itself and the world it starts from, not on the
+            # candidate's place in its generator's stream (a generator's state may reorder it)
+            key = (tuple(plan[step : i + 1]), tuple(chain), fingerprint(cand), id(world0))
             outcome = self._cache.get(key)
             cached = outcome is not None
             if not cached:
@@ -193,7 +209,7 @@ class Refiner:
             self.on_attempt(step=i, candidate=cand, outcome=outcome, partial=partial, cached=cached)
             if outcome.ok:  # line 12
                 outcomes[i], worlds[i + 1] = replace(outcome, candidate=cand), outcome.world
-                chain.append(gen.index)
+                chain.append(key[2])
                 i += 1
                 if i < n:
                     gens[i] = self.make_generator(i, plan[i], worlds[i])

@@ -42,6 +42,28 @@ def _final(model, state, plan):
     return state
 
 
+def unneeded_steps(plan, model, state) -> list[int]:
+    """Greedy action elimination (symbolic, before any refinement): drop a step together with the later
+    steps it alone enabled (an object picked for nothing and its put-down) while the rest still
+    applies from ``state`` and reaches the goal. A satisficing planner's detours would otherwise each
+    cost motion planning, and their failures replanning. Returns the indices dropped."""
+    kept = list(range(len(plan)))
+    i = 0
+    while i < len(kept):
+        s, rest = state, []
+        for k in kept[:i]:
+            s = model.progress(s, plan[k])
+        for k in kept[i + 1:]:
+            if model.applicable(s, plan[k]):
+                s = model.progress(s, plan[k])
+                rest.append(k)
+        if model.goal_holds(s):
+            kept = kept[:i] + rest
+        else:
+            i += 1
+    return [k for k in range(len(plan)) if k not in kept]
+
+
 def shortcut(plan, outcomes, model, state, geometry, motion, world0, out_of_time, on_accept, stats):
     """Greedily drop removable steps; returns (plan, outcomes), refined and valid."""
     plan, outcomes = list(plan), list(outcomes)

@@ -45,15 +45,15 @@ def _movables_on(geometry, world, arm, path, ignore, gripper="open"):
 
 class ClutterSampler(EpochState):
     """Clutter's pick and place generators and what they share within one epoch: grasp candidates
-    sampled once per (object, arm, object pose) and re-ranked in each world, and the target's best
-    approach corridors that put-downs keep clear of. The loop makes a fresh instance at every epoch,
-    so a reset discards both and samples anew."""
+    sampled once per (object, arm, object pose) and re-ranked in each world, and the approach
+    corridors of the best grasps found so far, which put-downs keep clear of. The loop makes a fresh
+    instance at every epoch, so a reset discards both and samples anew."""
 
     def __init__(self, seed):
         super().__init__(seed)
         self.grasps: dict = {}  # (obj, arm, pose) -> candidates
         self.misses: dict = {}  # (obj, arm, pose) -> fruitless searches so far
-        self.corridors: dict = {}  # arm -> [(base, approach xy points)] of the target's best grasps
+        self.corridors: dict = {}  # (obj, arm) -> (obj pose key, footprints of its best grasps there)
 
     def __call__(self, problem, step, world, rng):
         return self.pick(problem, step, world, rng) if step.action == "pick" else self.place(problem, step, world, rng)
@@ -72,8 +72,8 @@ class ClutterSampler(EpochState):
         if world.holder(obj) is not None or world.held.get(arm):
             return
         ranked = self.ranked_grasps(problem, world, obj, arm)
-        if obj == geometry.layout.target:  # the put-down sampler keeps clear of its best approaches
-            self.corridors[arm] = [(c[2], c[6]) for c in ranked[:3]]
+        # put-downs keep clear of these approaches: an object put down there would block this pick again
+        self.corridors[(obj, arm)] = (_pose_key(world.objects[obj]), [c[6] for c in ranked[:3]])
         for nhit, _, base, kind, T, wps, _ in ranked[:limit]:
             yield Candidate((base, *wps), {bp_ref: list(base), gp_ref: T.tolist()},
                             f"{kind} grasp from base {_fmt(base)} ({nhit[0]} objects on the approach, {nhit[1]} on the way)")
@@ -85,7 +85,7 @@ class ClutterSampler(EpochState):
 
         geometry = problem.geometry
         P = world.objects[obj]
-        key = (obj, arm, tuple(np.round(P[:3, :4].ravel(), 4)))
+        key = (obj, arm, _pose_key(P))
         if key in self.grasps:
             return self.grasps[key]
         check_graspable(problem, obj)
@@ -142,21 +142,29 @@ class ClutterSampler(EpochState):
         out.sort(key=lambda f: (f[0], f[1]))
         return out
 
-    def spot_score(self, geometry, world, target, x, y):
-        """Larger is better: near the table's edge (few objects between the arm and the spot, and an object
-        there stands in few other approaches), far from the target and clear of other objects, and never
-        in the corridor the arm will reach through for the target (its best grasps, see pick)."""
+    def spot_score(self, geometry, world, target, x, y, corridors=()):
+        """Larger is better: near the table's edge (few objects between the arm and the spot), far from
+        the target and clear of other objects, and never in ``corridors`` (see :meth:`corridors_for`)."""
         xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
         edge = min(x - xmin, xmax - x, y - ymin, ymax - y)
         d_obj = min((math.hypot(x - Q[0, 3], y - Q[1, 3]) for Q in world.objects.values()), default=1.0)
         Tt = world.objects.get(target)
         d_t = math.hypot(x - Tt[0, 3], y - Tt[1, 3]) if Tt is not None else 1.0
-        penalty = 0.0
-        for cands in self.corridors.values():
-            for rank, (_, xy) in enumerate(cands):
-                if any(math.hypot(x - a, y - b) < CORRIDOR for a, b in xy):
-                    penalty = max(penalty, 2.0 if rank == 0 else 0.5)
-        return min(d_obj, 0.25) + 0.5 * min(d_t, 0.6) - 1.5 * edge - penalty
+        return min(d_obj, 0.25) + 0.5 * min(d_t, 0.6) - 1.5 * edge - _in_corridors(x, y, corridors)
+
+    def corridors_for(self, world, placing, target):
+        """(penalty, footprint points) of the best grasps ranked in this epoch of every object still
+        standing where they were ranked, except the one being put down: the target's best approach
+        costs most, any object's best one (a later step may have to pick it) almost as much."""
+        out = []
+        for (obj, _), (pose, footprints) in self.corridors.items():
+            P = world.objects.get(obj)
+            if obj == placing or P is None or _pose_key(P) != pose:
+                continue
+            for rank, xy in enumerate(footprints):
+                weight = 0.5 if rank else (2.0 if obj == target else 1.5)
+                out.append((weight, np.asarray(xy, float)))
+        return out
 
     def place(self, problem, step, world, rng, limit: int = 4, tries: int = 80):
         """A free table spot (far from the target and other objects first), a base pose to reach it, and
@@ -171,13 +179,17 @@ class ClutterSampler(EpochState):
         G = world.held[arm][1]
         spots = []
         geometry.sync(world)
+        target = geometry.layout.target
+        corridors = self.corridors_for(world, obj, target)
         for x, y, z in _table_spots(geometry, world, obj, rng, tries):
-            spots.append((self.spot_score(geometry, world, geometry.layout.target, x, y), x, y, z))
+            spots.append((self.spot_score(geometry, world, target, x, y, corridors), x, y, z))
         spots.sort(key=lambda s: -s[0])
         found = []
+        clear, good = [], []  # candidates with nothing on their lowering and retreat; and off known approaches
         for rank, (_, x, y, z) in enumerate(spots):
-            if rank >= 3 * limit and found:
-                break  # past the best spots, only search on while nothing at all was found
+            blocks = _in_corridors(x, y, corridors)
+            if rank >= 3 * limit and (good or (clear and rank >= 6 * limit)):
+                break  # past the best spots, search on while every spot found is certainly or likely blocked
             for _ in range(4 if rank < 3 * limit else 8):
                 base = _base_near(geometry, x, y, rng)
                 if base is None or not _base_free(problem.geometry, world, base):
@@ -196,15 +208,19 @@ class ClutterSampler(EpochState):
                     hit = _movables_on(geometry, w, arm, lower, (), gripper=None)
                     hit |= _movables_on(geometry, w, arm, back, ())
                     sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], lower[-1]), (), gripper=None)
-                found.append(((len(hit), len(sweep)), rank, base, x, y, P, T, lower, back))
+                # a spot on a known approach blocks a later pick for sure: worse than a guessed transit hit
+                found.append(((len(hit), blocks, len(sweep)), rank, base, x, y, P, T, lower, back))
+                clear += [found[-1]] if not hit else []
+                good += [found[-1]] if not hit and not blocks else []
                 break
-            if len(found) >= limit or (found and found[-1][0] == (0, 0) and len(found) >= 2):
+            if (len(found) >= limit and good) or (len(good) >= 2 and good[-1][0] == (0, 0, 0)):
                 break
         found.sort(key=lambda f: (f[0], f[1]))
-        for nhit, _, base, x, y, P, T, lower, back in found:
+        for (hits, blocks, sweep), _, base, x, y, P, T, lower, back in found[:limit]:
+            on = ", on a known approach" if blocks else ""
             yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])),
                             {bp_ref: list(base), pd_ref: T.tolist(), "tloc": (obj, P), "object_pose": P.tolist()},
-                            f"{obj} at {_fmt((x, y))} from base {_fmt(base)} ({nhit[0]} + {nhit[1]} objects in the way)")
+                            f"{obj} at {_fmt((x, y))} from base {_fmt(base)} ({hits} + {sweep} objects in the way{on})")
 
 
 def _reach_xy(base, T, step=0.05):
@@ -271,6 +287,15 @@ def _table_spots(geometry, world, obj, rng, tries, want=12):
         if out >= want:
             return
         d = np.where(ok, -1.0, d)  # already offered
+
+
+def _in_corridors(x, y, corridors) -> float:
+    """The summed penalties of the corridors (see ClutterSampler.corridors_for) that (x, y) lies in."""
+    return sum(weight for weight, xy in corridors if np.min(np.hypot(xy[:, 0] - x, xy[:, 1] - y)) < CORRIDOR)
+
+
+def _pose_key(P):
+    return tuple(np.round(np.asarray(P)[:3, :4].ravel(), 4))
 
 
 def _fmt(p):

@@ -1,27 +1,22 @@
-"""The pybullet-planning JSON problem format (bodies / robots / task): see that repository's problems/json."""
+"""The pybullet-planning JSON problem format (bodies / robots / task): see that repository's problems/json.
+
+``load_pybullet_json`` reads a file (scene.py), builds the PR2 layout and the ``pr2-pbjson`` task
+(domain.py) over it, and maps every goal kind to task-level goals over pose references.
+"""
 from __future__ import annotations
 
 import json
 import logging
-import math
-from dataclasses import replace
 
-import numpy as np
 from interlayer.domain import Problem
 from interlayer.errors import UserError
-from interlayer_clutter.domain import clutter_problem
-from interlayer_pr2.scene import Layout, ObjectSpec
+from interlayer_pr2.scene import Layout
+
+from .domain import SLOTS, pbjson_domain
+from .scene import area, read_scene, top_name
 
 log = logging.getLogger("interlayer.pbjson")
-
-UNSUPPORTED_GOALS = ("goal_regions", "goal_poses", "goal_stackings", "goal_cleaned", "goal_cooked")
-
-
-def _yaw(q) -> float:
-    w, x, y, z = q["w"], q["x"], q["y"], q["z"]
-    if abs(x) > 1e-6 or abs(y) > 1e-6:
-        raise UserError("only upright bodies (rotations about z) are supported in pybullet-planning JSON files")
-    return 2 * math.atan2(z, w)
+ARMS = ("left", "right")
 
 
 def looks_like_pybullet_json(path) -> dict | None:
@@ -38,74 +33,115 @@ def looks_like_pybullet_json(path) -> dict | None:
 
 def load_pybullet_json(path, data, params, seed) -> Problem:
     """The problem of a pybullet-planning JSON file; a malformed file is a UserError naming what is wrong."""
+    if params:
+        raise UserError(f"{path.name}: problem parameters {sorted(params)} do not apply to a problem file.")
     try:
-        return _load_pybullet_json(path, data, params, seed)
+        scene = read_scene(data, path.stem)
+        return build_problem(scene, {"domain": "pbjson", "file": str(path), "seed": seed})
     except (KeyError, IndexError, TypeError, ValueError, AttributeError) as exc:
         what = f"the key {exc}" if isinstance(exc, KeyError) else f"{type(exc).__name__}: {exc}"
         raise UserError(f"{path.name} is not a pybullet-planning problem Interlayer can read ({what}); "
                         f"check the file against the format's bodies / robots / task fields.") from None
 
 
-def _load_pybullet_json(path, data, params, seed) -> Problem:
-    task = data["task"]
-    unsupported = [k for k in UNSUPPORTED_GOALS if task.get(k)]
-    if unsupported or not task.get("goal_holding"):
-        raise UserError(f"{path.name}: only 'goal_holding' goals are supported for now; this file asks for "
-                        f"{', '.join(unsupported) or 'no goal_holding'} (unsupported: {', '.join(UNSUPPORTED_GOALS)}).")
-    if task.get("goal_config"):
-        log.warning("%s: goal_config = %r is ignored (the robot need not return to its start configuration)",
-                    path.name, task["goal_config"])
-    if params:
-        raise UserError(f"{path.name}: problem parameters {sorted(params)} do not apply to a problem file.")
-    movable = set(task["object_names"])
-    tables = set(task.get("table_names", []))
-    if len(tables) != 1:
-        raise UserError(f"{path.name}: exactly one table is supported for now, got {sorted(tables)}.")
-    fixed, objects, top, region = [], [], None, None
-    for body in data["bodies"]:
-        bp, yaw = body["point"], _yaw(body["quat"])
-        B = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
-        links = [shape for link in body["links"] for shape in link]
-        for k, shape in enumerate(links):
-            lp = shape["point"]
-            xy = np.array([bp["x"], bp["y"]]) + B @ np.array([lp["x"], lp["y"]])
-            z = bp["z"] + lp["z"]
-            lyaw = yaw + _yaw(shape["quat"])
-            name = body["name"] if len(links) == 1 else f"{body['name']}_{k}"
-            if shape["type"] == "box":
-                size = tuple(2 * float(e) for e in shape["extents"])
-            elif shape["type"] == "cylinder":
-                size = (float(shape["radius"]), float(shape["height"]))
-            else:
-                raise UserError(f"{path.name}: shape type {shape['type']!r} of {body['name']} is not supported")
-            spec = ObjectSpec(name, shape["type"], size, (float(xy[0]), float(xy[1]), float(z), float(lyaw)),
-                              movable=body["name"] in movable)
-            if body["name"] in movable:
-                if len(links) != 1:
-                    raise UserError(f"{path.name}: movable {body['name']} must be a single shape")
-                objects.append(spec)
-            else:
-                if body["name"] in tables and spec.shape == "box" and (top is None or z + size[2] / 2 > top):
-                    top = z + size[2] / 2
-                    region = (xy[0] - size[0] / 2, xy[0] + size[0] / 2, xy[1] - size[1] / 2, xy[1] + size[1] / 2)
-                    spec = replace(spec, name="table")  # the support the validator and samplers know
-                fixed.append(spec)
-    if top is None:
-        raise UserError(f"{path.name}: the table has no box top")
-    robot = data["robots"][0]
-    base = (float(robot["point"]["x"]), float(robot["point"]["y"]), _yaw(robot["quat"]))
-    grasps = tuple(g.lower() for g in task.get("grasp_types", ["SIDE"]))
-    if any(g not in ("side", "top") for g in grasps):
-        raise UserError(f"{path.name}: grasp types {grasps} not supported (SIDE, TOP)")
-    target = task["goal_holding"]
-    if target not in {o.name for o in objects}:
-        raise UserError(f"{path.name}: goal_holding {target!r} is not among object_names")
-    lo = (min(base[0], region[0]) - 1.5, max(base[0], region[1]) + 1.5)
-    hi = (min(base[1], region[2]) - 1.5, max(base[1], region[3]) + 1.5)
-    layout = Layout(fixed, objects, {"table": region}, target, "hold", grasps, base=base,
-                    extra={"table_top": float(top), "base_limits": (lo, hi),
-                           "torso_height": float(min(0.3, max(0.0, 0.2 + top - 0.72)))})
-    log.info("%s: the robot's conf is not used (arms start tucked, torso at %.2f m for the table height)",
-             path.name, layout.extra["torso_height"])
-    return clutter_problem(layout, {"domain": "clutter", "file": str(path), "seed": seed, "layout": layout.to_json()},
-                           data.get("name") or path.stem)
+def torso_height(scene) -> float:
+    """The torso as the file's conf sets it, raised (never lowered) to Clutter's working height for the
+    highest table (the PR2 here holds its torso still while planning). Higher, the carry postures beside
+    the shoulder fail with a tall box in hand (measured: every one at 0.3 m on kitchen.json)."""
+    from interlayer_clutter.scene import TORSO
+
+    tops = [s.z for s in scene.surfaces.values() if s.kind == "table"] or [0.8]
+    work = min(TORSO, max(0.0, TORSO + max(tops) - 0.8))
+    start = scene.torso if scene.torso is not None else 0.0
+    return float(min(0.33, max(start, work)))
+
+
+def build_problem(scene, source) -> Problem:
+    from .world import PBGeometry
+
+    spots = scene.surfaces
+    tables = [s for s in spots.values() if s.kind == "table"]
+    # the single table's box: Clutter's base sampler keeps the base off it (several tables: a box far away,
+    # and the base is kept off the tables by collision checks alone)
+    clutter_table, table = None, (1e9, 1e9, 1e9, 1e9)
+    if len(tables) == 1:
+        xs, ys = [p[0] for p in tables[0].polygon], [p[1] for p in tables[0].polygon]
+        table = (min(xs), max(xs), min(ys), max(ys))
+        placing = any(scene.goals[k] for k in ("on", "stackings", "poses", "cleaned", "cooked"))
+        if not placing and abs(area(tables[0].polygon) - (table[1] - table[0]) * (table[3] - table[2])) < 1e-6:
+            clutter_table = tables[0].name  # the paper's kind of scene: Clutter's put-down sampler applies as it is
+    pts = [scene.base[:2]] + [p for o in scene.fixed + scene.objects if o.name not in scene.floors
+                              for p in [o.pose[:2]]]
+    lo = (min(p[0] for p in pts) - 1.2, max(p[0] for p in pts) + 1.2)
+    hi = (min(p[1] for p in pts) - 1.2, max(p[1] for p in pts) + 1.2)
+    goals = scene.goals
+    main_top = max((s.z for s in tables), default=0.8)
+    torso = torso_height(scene)
+    if scene.torso is not None and torso > scene.torso + 1e-9:
+        log.info("torso raised from %.3f (robots[0].conf) to %.3f m to reach surfaces at %.2f m", scene.torso, torso,
+                 max(s.z for s in spots.values()))
+    extra = {"table_top": float(main_top), "base_limits": (lo, hi), "torso_height": torso, "torso_conf": scene.torso,
+             "supports": tuple(o.name for o in scene.fixed if any(_body(o.name, s) for s in spots.values())),
+             "surfaces": spots, "colors": scene.colors, "offsets": scene.offsets, "arms": scene.arms, "goals": goals,
+             "clutter_table": clutter_table, "camera": scene.camera, "notes": scene.notes,
+             "floors": [o for o in scene.fixed if o.name in scene.floors]}  # drawn, not collided with
+    # the target (Clutter's samplers search harder for its grasps and keep put-downs out of its way): the
+    # object to hold, else the one object a goal places
+    placed = list(dict.fromkeys([*goals["on"], *goals["stackings"], *goals["poses"]]))
+    target = goals["holding"] or (placed[0] if len(placed) == 1 else None)
+    layout = Layout([o for o in scene.fixed if o.name not in scene.floors], list(scene.objects), {"table": table}, target,
+                    "pbjson", scene.grasps, base=scene.base, extra=extra)
+    geometry = PBGeometry(layout)
+    extra["goal_centres"] = {o: geometry.goal_centre(o) for o in goals["poses"]}
+    names = [o.name for o in scene.objects]
+    slots = [f"s{k + 1}" for k in range(SLOTS)]
+    kinds = {s.kind for s in spots.values()}
+    domain = pbjson_domain(tops="top" in kinds, goal_poses=bool(goals["poses"]), sinks="sink" in kinds,
+                           stoves="stove" in kinds, home=goals["home"])
+    objects = {o: "obj" for o in names}
+    objects.update({a: "arm" for a in ARMS})
+    objects.update({s: "slot" for s in slots})
+    objects.update({s: "surf" for s in spots})
+    clash = sorted(set(names) & set(ARMS + tuple(slots)))
+    if clash:
+        raise UserError(f"task.object_names: {clash[0]!r} is a name Interlayer reserves (arms, slots); rename the body.")
+    init = {("HandEmpty", a) for a in ARMS} | {("Other", "left", "right"), ("Other", "right", "left")}
+    init |= {("Resting", o) for o in names}
+    world = geometry.initial_world()
+    if geometry.in_collision(world):
+        pairs = sorted({b for a, b in geometry.cw.collision_pairs(geometry.sync(world))})
+        raise UserError(f"robots[0]: the PR2 at its start (point, quat and conf) collides with {', '.join(pairs)}; "
+                        f"move it or change its conf.")
+    for o in names:
+        for s in geometry.supports_of(o, world.objects[o], world):
+            init.add(("On", o, s))
+    for s in spots.values():
+        if s.kind == "top":
+            init.add(("TopOf", s.name, s.body))
+        elif s.kind in ("sink", "stove"):
+            init.add(("Sink" if s.kind == "sink" else "Stove", s.name))
+    for o in goals["poses"]:
+        init.add(("HasGoalPose", o))
+        if geometry.at_goal_pose(o, world.objects[o]):
+            init.add(("AtGoalPose", o))
+    parts = []
+    if goals["holding"]:
+        t = goals["holding"]
+        parts.append(f"(or (Holding {t} left) (Holding {t} right))")
+    parts += [f"(On {o} {s})" for o, s in goals["on"].items()]
+    parts += [f"(On {o} {top_name(b)})" for o, b in goals["stackings"].items()]
+    parts += [f"(AtGoalPose {o})" for o in goals["poses"]]
+    parts += [f"(Cleaned {o})" for o in goals["cleaned"]] + [f"(Cooked {o})" for o in goals["cooked"]]
+    if goals["home"]:
+        parts.append("(AtHome)")
+    source = {**source, "layout": layout.to_json()}
+    return Problem(domain, objects, frozenset(init), f"(and {' '.join(parts)})", geometry, source, name=scene.name)
+
+
+def _body(spec_name, surface):
+    """The body a fixed spec belongs to when it is part of ``surface``'s body (specs are <body> or <body>_<k>)."""
+    b = surface.body
+    if b is None or surface.kind == "top":
+        return None
+    return b if spec_name == b or (spec_name.startswith(f"{b}_") and spec_name[len(b) + 1:].isdigit()) else None
+

@@ -1,4 +1,4 @@
-"""Reads pybullet-planning JSON problem files (bodies / robots / task)."""
+"""Reads pybullet-planning JSON problem files (bodies / robots / task) and registers their pose generators."""
 from interlayer import hookimpl
 
 
@@ -11,3 +11,13 @@ def interlayer_load_problem(path, params, seed):
     if data is None:
         return None
     return load_pybullet_json(path, data, params, seed)
+
+
+@hookimpl
+def interlayer_register_pose_generators(registry):
+    from .samplers import PBSampler, go_home
+
+    registry.add("pbjson:pick", PBSampler, "pybullet-planning files: Clutter's pick (base pose + grasp, fewest objects in the way first)")
+    registry.add("pbjson:place", PBSampler, "pybullet-planning files: a stable spot on the step's surface or region, "
+                                            "or the goal pose, + base pose, by IK")
+    registry.add("pbjson:go_home", go_home, "pybullet-planning files: the robot's start configuration (goal_config)")

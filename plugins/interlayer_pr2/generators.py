@@ -23,6 +23,7 @@ from .world import LIFT, PRE_GRASP, pose4, rz, trans, wrap
 
 LINE_STEP = 0.05  # m between IK waypoints of straight-line approaches
 GRASP_CLEARANCE = 0.001  # the gripper must open at least this much wider than the object
+GRASP_DEPTH = 0.04  # m: the deepest a side grasp reaches into an object (tool point to its near face)
 DOWN = np.array([[0, 0, 1, 0], [0, 1, 0, 0], [-1, 0, 0, 0], [0, 0, 0, 1.0]])  # tool x pointing down
 
 
@@ -50,8 +51,10 @@ def grasp_poses(geometry, name, P, heading, kinds, rng, n_side=5):
             for k in range(4):
                 yaw = yaw_o + k * math.pi / 2
                 across = o.size[1] if k % 2 == 0 else o.size[0]  # extent along the closing (y) axis
+                depth = (o.size[0] if k % 2 == 0 else o.size[1]) / 2  # from the near face to the centre
                 if across + GRASP_CLEARANCE <= opening and abs(wrap(yaw - heading)) < math.pi / 2 - 0.2:
-                    out.append(("side", trans(x, y, z) @ rz(yaw)))
+                    # a long box is held near its face: the palm stays GRASP_DEPTH from the tool point
+                    out.append(("side", trans(x, y, z) @ rz(yaw) @ trans(-max(0.0, depth - GRASP_DEPTH), 0, 0)))
     if "top" in kinds:
         depth = min(0.03, h / 2)
         zt = z + h / 2 - depth

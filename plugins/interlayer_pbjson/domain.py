@@ -1,0 +1,105 @@
+"""The task encoding of pybullet-planning problems: ``pr2-pbjson``, Clutter's encoding with named surfaces.
+
+Like Clutter's (see interlayer_clutter.domain), ``move_base`` is folded into pick and place and
+obstructions are learned with two arguments. What it adds:
+
+* ``surf`` objects: the tables, regions, sinks and stoves of the file, and ``<obj>_top`` for objects that
+  others stand on (stacking). ``(On ?o ?s)`` says where an object rests; place puts ?o on ?s through
+  the references ``bpfpd_<o>_<arm>_<surf>_<slot>`` / ``gpfpd_...``, whose pose generator samples a
+  stable placement on that surface (inside its polygon, clear of fixed obstacles and other objects).
+* ``place_at_goal`` puts an object at its goal pose (``goal_poses``, "initial" included): references
+  ``bpfgp_<o>_<arm>`` / ``gpfgp_<o>_<arm>``; ``(AtGoalPose ?o)`` holds until the object is picked.
+* kitchen semantics as conditional effects: placing on a sink cleans, placing a clean object on a
+  stove cooks.
+* ``go_home`` drives the base back to its start and the empty arms to their start configuration
+  (``goal_config: "initial"``). It is the plan's last action: it adds ``(AtHome)`` and nothing may
+  pick or place after it (a satisficing planner otherwise goes home between picks).
+
+Only what a file needs is in its domain (no sinks: no cleaning effect; no goal poses: no place_at_goal),
+so a holding-only file such as the paper's table grounds like Clutter-N.
+"""
+from __future__ import annotations
+
+from interlayer.domain import ActionSpec, DomainSpec, Skolem
+
+SLOTS = 2
+
+
+def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home: bool) -> DomainSpec:
+    preds = {
+        "HandEmpty": ("arm",), "Other": ("arm", "arm"), "Holding": ("obj", "arm"), "Resting": ("obj",),
+        "On": ("obj", "surf"),
+        "IsBPFG": ("bpose", "obj", "arm"), "IsGPFG": ("gpose", "obj", "arm"),
+        "IsBPFPD": ("bpose", "obj", "arm", "surf", "slot"), "IsGPFPD": ("pdpose", "obj", "arm", "surf", "slot"),
+        "Obstructs": ("obj", "gpose"), "PDObstructs": ("obj", "pdpose"),
+    }
+    skolems = [
+        Skolem("bpfg", ("obj", "arm"), "bpose", "IsBPFG", "a base pose from which arm can grasp obj"),
+        Skolem("gpfg", ("obj", "arm"), "gpose", "IsGPFG", "a gripper pose grasping obj (with pre-grasp and raise)"),
+        Skolem("bpfpd", ("obj", "arm", "surf", "slot"), "bpose", "IsBPFPD", "a base pose from which arm can put obj on surf"),
+        Skolem("gpfpd", ("obj", "arm", "surf", "slot"), "pdpose", "IsGPFPD", "a gripper pose putting obj on a stable spot of surf"),
+    ]
+    pick_pre = ["(HandEmpty ?arm)", "(Resting ?o)", "(IsBPFG ?bp ?o ?arm)", "(IsGPFG ?gp ?o ?arm)", "(Other ?arm ?arm2)",
+                "(IsGPFG ?gp2 ?o ?arm2)", "(forall (?b - obj) (not (Obstructs ?b ?gp)))"]
+    pick_eff = ["(Holding ?o ?arm)", "(not (HandEmpty ?arm))", "(not (Resting ?o))", "(forall (?s - surf) (not (On ?o ?s)))",
+                "(forall (?p - gpose) (not (Obstructs ?o ?p)))", "(forall (?p - pdpose) (not (PDObstructs ?o ?p)))",
+                "(forall (?b - obj) (and (not (Obstructs ?b ?gp)) (not (Obstructs ?b ?gp2))))"]
+    place_pre = ["(Holding ?o ?arm)", "(IsBPFPD ?bp ?o ?arm ?s ?sl)", "(IsGPFPD ?pd ?o ?arm ?s ?sl)",
+                 "(forall (?b - obj) (not (PDObstructs ?b ?pd)))"]
+    place_eff = ["(not (Holding ?o ?arm))", "(HandEmpty ?arm)", "(Resting ?o)", "(On ?o ?s)"]
+    if tops:  # nothing is picked from under another object; an object's top holds only while it rests
+        preds["TopOf"] = ("surf", "obj")
+        pick_pre.append("(forall (?s - surf) (or (not (TopOf ?s ?o)) (forall (?b - obj) (not (On ?b ?s)))))")
+        place_pre.append("(forall (?x - obj) (or (not (TopOf ?s ?x)) (Resting ?x)))")
+    if sinks:
+        preds.update({"Sink": ("surf",), "Cleaned": ("obj",)})
+        place_eff.append("(when (Sink ?s) (Cleaned ?o))")
+    if stoves:
+        preds.update({"Stove": ("surf",), "Cooked": ("obj",)})
+        preds.setdefault("Cleaned", ("obj",))
+        place_eff.append("(when (and (Stove ?s) (Cleaned ?o)) (Cooked ?o))")
+    if home:
+        preds["AtHome"] = ()
+        pick_pre.append("(not (AtHome))")
+        place_pre.append("(not (AtHome))")
+    if goal_poses:
+        preds.update({"AtGoalPose": ("obj",), "HasGoalPose": ("obj",), "IsBPFGP": ("bpose", "obj", "arm"),
+                      "IsGPFGP": ("pdpose", "obj", "arm")})
+        skolems += [Skolem("bpfgp", ("obj", "arm"), "bpose", "IsBPFGP", "a base pose from which arm can put obj at its goal pose"),
+                    Skolem("gpfgp", ("obj", "arm"), "pdpose", "IsGPFGP", "a gripper pose putting obj at its goal pose")]
+        pick_eff.append("(not (AtGoalPose ?o))")
+    actions = [
+        ActionSpec(
+            name="pick",
+            # ?gp2: the other arm's grasp reference of ?o, only so that the effect forgets what was
+            # learned about grasping ?o where it stood (as in Clutter's pick)
+            parameters=(("?o", "obj"), ("?arm", "arm"), ("?arm2", "arm"), ("?bp", "bpose"), ("?gp", "gpose"),
+                        ("?gp2", "gpose")),
+            precondition=f"(and {' '.join(pick_pre)})", effect=f"(and {' '.join(pick_eff)})",
+            learn={"obstruction": ("(Obstructs ?blocker ?gp)",)}, pose_generator="pbjson:pick"),
+        ActionSpec(
+            name="place",
+            parameters=(("?o", "obj"), ("?arm", "arm"), ("?s", "surf"), ("?sl", "slot"), ("?bp", "bpose"), ("?pd", "pdpose")),
+            precondition=f"(and {' '.join(place_pre)})", effect=f"(and {' '.join(place_eff)})",
+            learn={"obstruction": ("(PDObstructs ?blocker ?pd)",)}, pose_generator="pbjson:place"),
+    ]
+    if goal_poses:
+        actions.append(ActionSpec(
+            name="place_at_goal",
+            parameters=(("?o", "obj"), ("?arm", "arm"), ("?bp", "bpose"), ("?pd", "pdpose")),
+            precondition=f"""(and (Holding ?o ?arm) (HasGoalPose ?o) (IsBPFGP ?bp ?o ?arm) (IsGPFGP ?pd ?o ?arm)
+                                  (forall (?b - obj) (not (PDObstructs ?b ?pd))){' (not (AtHome))' if home else ''})""",
+            effect=f"(and (not (Holding ?o ?arm)) (HandEmpty ?arm) (Resting ?o) (AtGoalPose ?o))",
+            learn={"obstruction": ("(PDObstructs ?blocker ?pd)",)}, pose_generator="pbjson:place"))
+    if home:
+        actions.append(ActionSpec(name="go_home", parameters=(), precondition="(not (AtHome))", effect="(AtHome)",
+                                  pose_generator="pbjson:go_home"))
+    return DomainSpec(
+        name="pr2-pbjson",
+        types={"obj": None, "arm": None, "surf": None, "slot": None},
+        continuous_types=("bpose", "gpose", "pdpose"),
+        predicates=preds,
+        skolems=tuple(skolems),
+        geometric=("Obstructs", "PDObstructs"),
+        actions=tuple(actions),
+    )

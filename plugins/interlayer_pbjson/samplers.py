@@ -1,0 +1,160 @@
+"""Pose generators of pybullet-planning problems (move_base folded in, as in Clutter).
+
+* ``pbjson:pick``: Clutter's pick (stable grasp candidates per object pose, fewest objects in the way
+  first).
+* ``pbjson:place``: for ``place`` on the one table of a single-table scene, Clutter's put-down sampler;
+  otherwise a stable placement on the step's surface: a point inside its polygon
+  (the object's whole footprint inside, for tables and regions; its centre over the top of an object
+  it is stacked on), clear of fixed obstacles, other objects and the goal poses of others, and out of
+  the best approaches found so far (Clutter's corridors); for
+  ``place_at_goal`` the goal pose itself (and its symmetric yaws). Then a base pose, IK, the lowering
+  and the retreat; candidates with fewer objects in the way first.
+* ``pbjson:go_home``: the start configuration.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+from interlayer.refine import Candidate
+from interlayer_clutter.samplers import ClutterSampler, _base_free, _base_near, _coarse, _fmt, _in_corridors, _movables_on
+from interlayer_pr2.scene import REST_GAP
+from interlayer_pr2.world import pose4
+
+from .scene import inside, polygon_of
+
+
+class PBSampler(ClutterSampler):
+    """Clutter's sampler (its pick and its per-epoch state) with placements on named surfaces."""
+
+    def __call__(self, problem, step, world, rng):
+        if step.action == "pick":
+            return self.pick(problem, step, world, rng)
+        if step.action == "place_at_goal":
+            return self.place_at_goal(problem, step, world, rng)
+        return self.place_on(problem, step, world, rng)
+
+    def place_on(self, problem, step, world, rng, tries: int = 60):
+        from interlayer_pr2.generators import _putdown
+
+        obj, arm, surf = step.args[0], step.args[1], step.args[2]
+        geometry = problem.geometry
+        if world.holder(obj) != arm:
+            return
+        if surf == geometry.layout.extra.get("clutter_table"):
+            # the paper's kind of scene (one axis-aligned table): Clutter's own put-down sampler, which keeps
+            # the target's approach corridors clear
+            yield from self.place(problem, replace(step, args=(obj, arm, step.args[3], *step.args[4:])), world, rng)
+            return
+        found = geometry.surface(surf, world)
+        if found is None:
+            return
+        poly, top = found
+        G = world.held[arm][1]
+        o = geometry.specs[obj]
+        z = top + o.height / 2 + REST_GAP
+        stacked = geometry.surfaces[surf].kind == "top"
+        geometry.sync(world)
+        reserved = [(C[0, 3], C[1, 3], _radius(geometry.specs[k])) for k, C in geometry.layout.extra["goal_centres"].items()
+                    if k != obj]
+        below = geometry.surfaces[surf].body  # the object stacked on (kind "top"): not in the way
+        others = [(Q[0, 3], Q[1, 3], _radius(geometry.specs[k])) for k, Q in world.objects.items() if k not in (obj, below)]
+        corridors = self.corridors_for(world, obj, geometry.layout.target)  # the best approaches found so far
+        r = _radius(o)
+        xs, ys = [p[0] for p in poly], [p[1] for p in poly]
+        spots = []
+        for x, y in np.column_stack([rng.uniform(min(xs), max(xs), 25 * tries), rng.uniform(min(ys), max(ys), 25 * tries)]):
+            if not inside(poly, x, y, 0.005 if stacked else min(o.size[0], o.size[1]) / 2):
+                continue
+            if any(math.hypot(x - a, y - b) < r + s + 0.02 for a, b, s in reserved):
+                continue  # another object's goal pose
+            d = min((math.hypot(x - a, y - b) - r - s for a, b, s in others), default=1.0)
+            if d < 0.01:
+                continue
+            spots.append((min(d, 0.25) - _in_corridors(x, y, corridors) + 0.1 * rng.random(), float(x), float(y)))
+            if len(spots) >= tries:
+                break
+        spots.sort(key=lambda s: -s[0])
+
+        def pose_at(x, y, heading):
+            P, _ = _putdown(G, x, y, z, heading)
+            if not stacked and not all(inside(poly, px, py) for px, py in polygon_of(_spec_at(o, P))):
+                return None
+            return P
+
+        yield from self._putdowns(problem, world, obj, arm, step.args[4], step.args[5],
+                                  [(x, y, lambda h, x=x, y=y: pose_at(x, y, h)) for _, x, y in spots], rng)
+
+    def place_at_goal(self, problem, step, world, rng):
+        obj, arm = step.args[0], step.args[1]
+        geometry = problem.geometry
+        if world.holder(obj) != arm:
+            return
+        geometry.sync(world)
+        C = geometry.layout.extra["goal_centres"][obj]
+        period = geometry.symmetry(obj) or math.pi / 2
+        yaw = math.atan2(C[1, 0], C[0, 0])
+        x, y, z = (float(v) for v in C[:3, 3])
+        variants = [pose4(x, y, z, yaw + k * period) for k in range(int(round(2 * math.pi / period)))]
+        yield from self._putdowns(problem, world, obj, arm, step.args[2], step.args[3],
+                                  [(x, y, lambda h, P=P: P) for P in variants], rng, per_spot=8)
+
+    def _putdowns(self, problem, world, obj, arm, bp_ref, pd_ref, spots, rng, limit: int = 4, per_spot: int = 4):
+        """Candidates (base, lowering, retreat) for the object poses ``spots`` offers: (x, y, pose(heading))
+        with heading the direction from the base to (x, y); fewest objects in the way first."""
+        from interlayer_pr2.generators import LIFT, PRE_GRASP, _line, trans
+
+        geometry = problem.geometry
+        G = world.held[arm][1]
+        found = []
+        for rank, (x, y, pose_at) in enumerate(spots):
+            if rank >= 3 * limit and found:
+                break  # past the best spots, only search on while nothing at all was found
+            for _ in range(per_spot if rank < 3 * limit else 2 * per_spot):
+                base = _base_near(geometry, x, y, rng)
+                if base is None or not _base_free(geometry, world, base):
+                    continue
+                P = pose_at(math.atan2(y - base[1], x - base[0]) + rng.uniform(-0.3, 0.3))
+                if P is None:
+                    continue
+                with geometry.stats.timer("collision_checking"):
+                    hits = geometry.cw.objects_overlap(obj, P)
+                if hits & geometry.fixed:
+                    continue
+                T = P @ np.linalg.inv(G)
+                w = replace(world, base=base)
+                put = geometry.ik(w, arm, T, rng, attempts=4)
+                if put is None:
+                    continue
+                lower = _line(geometry, w, arm, T, lambda d, T=T: trans(0, 0, d) @ T, LIFT, put, rng)
+                back = _line(geometry, w.with_gripper(arm, "open"), arm, T, lambda d, T=T: T @ trans(-d, 0, 0), PRE_GRASP,
+                             put, rng, gripper="open")
+                if lower is None or back is None:
+                    continue
+                with geometry.stats.timer("collision_checking"):
+                    hit = _movables_on(geometry, w, arm, lower, (), gripper=None) | hits
+                    hit |= _movables_on(geometry, w, arm, back, ())
+                    sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], lower[-1]), (), gripper=None)
+                found.append(((len(hit), len(sweep)), rank, base, x, y, P, T, lower, back))
+                break
+            if len(found) >= limit or (found and found[-1][0] == (0, 0) and len(found) >= 2):
+                break
+        found.sort(key=lambda f: (f[0], f[1]))
+        for nhit, _, base, x, y, P, T, lower, back in found:
+            yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])),
+                            {bp_ref: list(base), pd_ref: T.tolist(), "tloc": (obj, P), "object_pose": P.tolist()},
+                            f"{obj} at {_fmt((x, y))} from base {_fmt(base)} ({nhit[0]} + {nhit[1]} objects in the way)")
+
+
+def go_home(problem, step, world, rng):
+    """The one way home: the start base pose (the arms' start joints are the geometry's)."""
+    yield Candidate((tuple(problem.geometry.layout.base),), {}, "back to the start configuration")
+
+
+def _radius(spec) -> float:
+    return spec.size[0] if spec.shape == "cylinder" else 0.5 * math.hypot(spec.size[0], spec.size[1])
+
+
+def _spec_at(spec, P):
+    return replace(spec, pose=(float(P[0, 3]), float(P[1, 3]), float(P[2, 3]), math.atan2(P[1, 0], P[0, 0])))

@@ -1,0 +1,412 @@
+"""Reading a pybullet-planning JSON problem (bodies / robots / task) into a scene: shapes, surfaces,
+regions, the robot's start and the goals. Everything the format allows is read; what Interlayer cannot
+model is a ``UserError`` naming the field and its value.
+
+Conventions of the format (checked against the preview images): quaternions are ``{w, x, y, z}``;
+a box's ``extents`` are half extents; a cylinder is centred on its origin with its axis along the
+geom's z; each geom has its own ``point`` / ``quat`` relative to its body; a ``trimesh`` whose file is
+not shipped (``filename`` empty) is drawn and collided as the body's ``aabb`` (given in the body frame,
+half extents); a sphere of radius 0 is a marker and is skipped. Goal poses are body poses
+``[qw, qx, qy, qz, x, y, z]``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from interlayer.errors import UserError
+from interlayer_pr2.scene import ObjectSpec
+
+GEOM_TYPES = ("box", "cylinder", "sphere", "trimesh", "mesh")
+GOAL_KEYS = ("goal_holding", "goal_regions", "goal_poses", "goal_stackings", "goal_cleaned", "goal_cooked", "goal_config")
+ON_TOL = 0.01  # m: an object whose bottom is this close to a surface's height rests on it
+FLOOR_TOP = 0.01  # m: a fixed slab whose top is below this is the floor (drawn, not collided with the base)
+
+
+@dataclass
+class Surface:
+    """A place objects rest on: a table top, a region, a sink or stove top, or an object's top."""
+
+    name: str
+    kind: str  # "table" | "region" | "sink" | "stove" | "top"
+    polygon: list  # [(x, y), ...] counter-clockwise, world frame (for "top": in the object's frame)
+    z: float  # height of the surface (for "top": above the object's centre)
+    body: str | None = None  # the body it belongs to (the object, for "top")
+    color: tuple | None = None
+
+
+@dataclass
+class Scene:
+    name: str
+    fixed: list  # ObjectSpec (one per collision shape)
+    objects: list  # ObjectSpec (movable)
+    offsets: dict  # object -> (x, y, z, yaw) of its shape in its body frame (goal poses are body poses)
+    surfaces: dict  # name -> Surface
+    colors: dict  # spec name -> rgba
+    floors: list  # names of fixed specs that are the floor
+    base: tuple  # (x, y, yaw)
+    torso: float | None
+    arms: dict  # "left"/"right" -> {joint name: value} from robots[0].conf
+    grasps: tuple
+    goals: dict
+    notes: list = field(default_factory=list)  # approximations made, shown by `interlayer check`
+    camera: tuple | None = None  # where the file's camera looks from (relative to the scene's centre)
+
+
+def rotation(q, where) -> np.ndarray:
+    try:
+        w, x, y, z = (float(q[k]) for k in "wxyz")
+    except (KeyError, TypeError, ValueError):
+        raise UserError(f"{where} = {q!r} is not a quaternion {{\"w\", \"x\", \"y\", \"z\"}}.") from None
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    if not n > 1e-9 or not math.isfinite(n):
+        raise UserError(f"{where} = {q!r} is not a rotation (zero or non-finite quaternion).")
+    w, x, y, z = w / n, x / n, y / n, z / n
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def point(p, where) -> np.ndarray:
+    try:
+        v = np.array([float(p[k]) for k in "xyz"])
+    except (KeyError, TypeError, ValueError):
+        raise UserError(f"{where} = {p!r} is not a point {{\"x\", \"y\", \"z\"}}.") from None
+    if not np.isfinite(v).all():
+        raise UserError(f"{where} = {p!r} is not a finite point.")
+    return v
+
+
+def frame(node, where) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = rotation(node.get("quat", {"w": 1, "x": 0, "y": 0, "z": 0}), f"{where}.quat")
+    T[:3, 3] = point(node.get("point", {"x": 0, "y": 0, "z": 0}), f"{where}.point")
+    return T
+
+
+def _upright(T, shape, size, where):
+    """(size, (x, y, z, yaw)) of a shape at T whose one axis is vertical; boxes may lie on any face."""
+    R = T[:3, :3]
+    j = next((k for k in range(3) if abs(R[2, k]) > 1 - 1e-6), None)
+    if j is None or (shape == "cylinder" and j != 2):
+        raise UserError(f"{where}.quat tilts the {shape} (no axis vertical); Interlayer supports shapes standing "
+                        f"upright or lying on a face (rotations by multiples of 90 degrees about x or y).")
+    a = 0 if j != 0 else 1
+    yaw = math.atan2(R[1, a], R[0, a])
+    if shape == "box":
+        b = 3 - j - a
+        size = (size[a], size[b], size[j])
+    return tuple(float(s) for s in size), (float(T[0, 3]), float(T[1, 3]), float(T[2, 3]), float(yaw))
+
+
+def _color(geom):
+    c = geom.get("color")
+    try:
+        return tuple(float(c[k]) for k in "rgba")
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def _aabb_shape(body, T, where):
+    """The body's aabb (body frame, half extents) as a box: how a mesh without its file is modelled."""
+    box = body.get("aabb")
+    if not isinstance(box, dict) or "center" not in box or "extents" not in box:
+        raise UserError(f"{where} is a mesh without a mesh file and the body has no 'aabb' to stand for it; "
+                        f"give the body an aabb {{\"center\", \"extents\"}} or box/cylinder geoms.")
+    c, e = [float(v) for v in box["center"]], [2 * float(v) for v in box["extents"]]
+    if len(c) != 3 or len(e) != 3 or min(e) <= 0:
+        raise UserError(f"bodies[{body.get('name')}].aabb = {box!r} must have a 3-D center and positive extents.")
+    C = T.copy()
+    C[:3, 3] = T[:3, :3] @ np.array(c) + T[:3, 3]
+    return "box", tuple(e), C
+
+
+def read_body(body, i, movable):
+    """[(shape, size, 4x4 pose, colour, where)] of one body; a movable body is one shape."""
+    where = f"bodies[{i}] ({body['name']})"
+    T = frame(body, where)
+    shapes, mesh = [], False
+    links = body["links"]
+    if not isinstance(links, list) or not all(isinstance(link, list) for link in links):
+        raise UserError(f"{where}.links must be a list of lists of geoms.")
+    for li, link in enumerate(links):
+        # a link has one colour in the previews: its last geom's (e.g. the IKEA tables are red all over)
+        color = next((c for c in (_color(g) for g in reversed(link) if isinstance(g, dict)) if c), None)
+        for gi, geom in enumerate(link):
+            at = f"{where}.links[{li}][{gi}]"
+            kind = geom.get("type") if isinstance(geom, dict) else None
+            if kind not in GEOM_TYPES:
+                raise UserError(f"{at}.type = {kind!r} is not a geom type Interlayer reads ({', '.join(GEOM_TYPES)}).")
+            G = T @ frame(geom, at)
+            if kind == "box":
+                e = [float(v) for v in geom["extents"]]
+                if len(e) != 3 or min(e) <= 0:
+                    raise UserError(f"{at}.extents = {geom['extents']!r} must be three positive half extents.")
+                shapes.append(("box", tuple(2 * v for v in e), G, color, at))
+            elif kind == "cylinder":
+                r, h = float(geom["radius"]), float(geom["height"])
+                if not (r > 0 and h > 0):
+                    raise UserError(f"{at}: radius {r} and height {h} must be positive.")
+                shapes.append(("cylinder", (r, h), G, color, at))
+            elif kind == "sphere":
+                r = float(geom["radius"])
+                if r > 0:  # a sphere stands in as the cylinder around it
+                    shapes.append(("cylinder", (r, 2 * r), G, color, at))
+            else:
+                if not mesh:
+                    shape, size, C = _aabb_shape(body, T, at)
+                    shapes.append((shape, size, C, color, at))
+                mesh = True
+    if not shapes:
+        raise UserError(f"{where} has no shape (links hold no box, cylinder or mesh).")
+    if movable and len(shapes) > 1:  # a movable object is grasped as one shape: its bounding box
+        shape, size, C = _aabb_shape(body, T, f"{where} (a movable body of {len(shapes)} geoms)")
+        shapes = [(shape, size, C, shapes[0][3], where)]
+    out = []
+    for shape, size, G, color, at in shapes:
+        size, pose = _upright(G, shape, size, at)
+        out.append((shape, size, pose, color, at))
+    return T, out, mesh
+
+
+def polygon_of(spec) -> list:
+    """The footprint of a spec (box: its rectangle; cylinder: an octagon around it), counter-clockwise."""
+    x, y, _, yaw = spec.pose
+    if spec.shape == "box":
+        hx, hy = spec.size[0] / 2, spec.size[1] / 2
+        pts = [(-hx, -hy), (hx, -hy), (hx, hy), (-hx, hy)]
+    else:
+        r = spec.size[0]
+        pts = [(r * math.cos(k * math.pi / 4), r * math.sin(k * math.pi / 4)) for k in range(8)]
+    c, s = math.cos(yaw), math.sin(yaw)
+    return [(x + c * px - s * py, y + s * px + c * py) for px, py in pts]
+
+
+def convex_hull(points) -> list:
+    pts = sorted(set((round(float(a), 9), round(float(b), 9)) for a, b in points))
+    if len(pts) < 3:
+        return pts
+
+    def cross(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower, upper = [], []
+    for p in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    for p in reversed(pts):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    return lower[:-1] + upper[:-1]
+
+
+def area(poly) -> float:
+    return 0.5 * abs(sum(a[0] * b[1] - b[0] * a[1] for a, b in zip(poly, poly[1:] + poly[:1])))
+
+
+def inside(poly, x, y, margin=0.0) -> bool:
+    """(x, y) lies in the convex counter-clockwise polygon, at least ``margin`` from its edges."""
+    for (ax, ay), (bx, by) in zip(poly, poly[1:] + poly[:1]):
+        ex, ey = bx - ax, by - ay
+        n = math.hypot(ex, ey)
+        if n < 1e-12:
+            continue
+        if (ex * (y - ay) - ey * (x - ax)) / n < margin - 1e-9:
+            return False
+    return True
+
+
+def _names(task, key, where="task"):
+    value = task.get(key) or []
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise UserError(f"{where}.{key} = {value!r} must be a list of names.")
+    return value
+
+
+def read_scene(data, label) -> Scene:
+    task, bodies = data["task"], data["bodies"]
+    if not isinstance(bodies, list) or not bodies:
+        raise UserError(f"{label}: 'bodies' must be a non-empty list of bodies.")
+    names = [b["name"] for b in bodies]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise UserError(f"bodies: the name {dup[0]!r} is used by more than one body; body names must be unique.")
+    known = set(names)
+    movable = _names(task, "object_names")
+    for key in ("object_names", "table_names", "sink_names", "stove_names", "floor_object_names"):
+        for n in _names(task, key):
+            if n not in known:
+                raise UserError(f"task.{key} names {n!r}, which is not a body of the file.")
+    if not movable:
+        raise UserError("task.object_names is empty: the problem has no movable object.")
+    for reserved in ("left", "right"):
+        if reserved in known:
+            raise UserError(f"bodies: a body is named {reserved!r}, which Interlayer reserves for the PR2's arms; rename it.")
+    role = {n: k for k in ("table", "sink", "stove") for n in _names(task, f"{k}_names")}
+    fixed, objects, offsets, colors, floors, notes, surfaces = [], [], {}, {}, [], [], {}
+    for i, body in enumerate(bodies):
+        name = body["name"]
+        is_movable = name in movable
+        T, shapes, mesh = read_body(body, i, is_movable)
+        if mesh:
+            notes.append(f"{name}: mesh without its file, modelled as the body's bounding box")
+        specs = []
+        for k, (shape, size, pose, color, _) in enumerate(shapes):
+            spec = ObjectSpec(name if len(shapes) == 1 else f"{name}_{k}", shape, size, pose, movable=is_movable)
+            colors[spec.name] = color
+            specs.append(spec)
+        if is_movable:
+            objects.append(specs[0])
+            centre = (np.linalg.inv(T) @ np.append(np.array(specs[0].pose[:3]), 1.0))[:3]
+            offsets[name] = [*centre.tolist(), specs[0].pose[3] - math.atan2(T[1, 0], T[0, 0])]  # + yaw in the body
+            continue
+        for spec in specs:
+            if spec.shape == "box" and spec.pose[2] + spec.size[2] / 2 < FLOOR_TOP:
+                floors.append(spec.name)
+        fixed += specs
+        if name in role:
+            top = max(specs, key=lambda s: s.pose[2] + s.height / 2)
+            surfaces[name] = Surface(name, role[name], polygon_of(top), top.pose[2] + top.height / 2, name,
+                                     colors.get(top.name))
+    for i, region in enumerate(task.get("regions") or []):
+        where = f"task.regions[{i}]"
+        rname = region["name"]
+        if rname in known or rname in surfaces:
+            raise UserError(f"{where}.name = {rname!r} is already the name of a body or region.")
+        R = frame(region, where)
+        hull = region["hull"]
+        try:
+            local = np.array([[float(p[0]), float(p[1])] for p in hull])
+        except (TypeError, ValueError, IndexError):
+            raise UserError(f"{where}.hull = {hull!r} must be a list of [x, y] points.") from None
+        if len(local) == 0:
+            raise UserError(f"{where}.hull is empty.")
+        # the box around the hull's points, as the format's own reader (and its preview images) take it:
+        # the files list a rectangle's corners, some with the last one repeated
+        (x0, y0), (x1, y1) = local.min(axis=0), local.max(axis=0)
+        poly = convex_hull([(R @ np.array([x, y, 0.0, 1.0]))[:2] for x, y in ((x0, y0), (x1, y0), (x1, y1), (x0, y1))])
+        if len(poly) < 3 or area(poly) < 1e-6:
+            raise UserError(f"{where}.hull = {hull!r} encloses no area.")
+        surfaces[rname] = Surface(rname, "region", poly, float(R[2, 3]), None, _color(region))
+    goals = read_goals(task, {o.name for o in objects}, surfaces)
+    # objects that others rest on, and the stacking targets, get a surface on their top
+    specs = {o.name: o for o in objects}
+    tops = set(goals["stackings"].values())
+    for o in objects:
+        bottom = o.pose[2] - o.height / 2
+        for other in objects:
+            if other is not o and abs(other.pose[2] + other.height / 2 - bottom) < ON_TOL and \
+                    inside(polygon_of(other), o.pose[0], o.pose[1]):
+                tops.add(other.name)
+    for t in sorted(tops):
+        s = specs[t]
+        local = polygon_of(ObjectSpec(t, s.shape, s.size, (0.0, 0.0, 0.0, 0.0)))
+        surfaces[top_name(t)] = Surface(top_name(t), "top", local, s.height / 2, t, colors.get(t))
+    for n in surfaces:
+        if n in specs:
+            raise UserError(f"task: {n!r} is both a movable object and a surface.")
+    robots = data["robots"]
+    if not isinstance(robots, list) or len(robots) != 1:
+        raise UserError(f"robots: exactly one robot (a PR2) is supported, got {len(robots) if isinstance(robots, list) else robots!r}.")
+    base, torso, arms = read_robot(robots[0])
+    grasps = task.get("grasp_types") or ["SIDE", "TOP"]
+    if not isinstance(grasps, list) or any(str(g).upper() not in ("SIDE", "TOP") for g in grasps):
+        raise UserError(f"task.grasp_types = {grasps!r}: Interlayer knows \"SIDE\" and \"TOP\" grasps.")
+    camera = None
+    if isinstance(data.get("camera"), dict) and isinstance(data["camera"].get("point"), dict):
+        centre = np.mean([o.pose[:3] for o in fixed + objects], axis=0)
+        camera = tuple(float(v) for v in point(data["camera"]["point"], "camera.point") - centre)
+    return Scene(str(task.get("name") or data.get("name") or label), fixed, objects, offsets, surfaces, colors, floors,
+                 base, torso, arms, tuple(dict.fromkeys(str(g).lower() for g in grasps)), goals, notes, camera)
+
+
+def top_name(obj) -> str:
+    return f"{obj}_top"
+
+
+def read_robot(robot):
+    where = "robots[0]"
+    T = frame(robot, where)
+    if abs(T[2, 2]) < 1 - 1e-6:
+        raise UserError(f"{where}.quat tilts the robot; a PR2 base turns about z only.")
+    base = (float(T[0, 3]), float(T[1, 3]), float(math.atan2(T[1, 0], T[0, 0])))
+    conf = robot.get("conf") or {}
+    if not isinstance(conf, dict):
+        raise UserError(f"{where}.conf = {conf!r} must map joint names to [value].")
+    values = {}
+    for joint, v in conf.items():
+        try:
+            values[joint] = float(v[0] if isinstance(v, list) else v)
+        except (TypeError, ValueError, IndexError):
+            raise UserError(f"{where}.conf.{joint} = {v!r} is not a joint value [number].") from None
+    torso = values.get("torso_lift_joint")
+    arms = {arm: {j: v for j, v in values.items() if j.startswith(f"{arm[0]}_") and "gripper" not in j}
+            for arm in ("left", "right")}
+    return base, torso, arms
+
+
+def read_goals(task, objects, surfaces) -> dict:
+    def obj(value, where):
+        if value not in objects:
+            raise UserError(f"{where} = {value!r} is not a movable object (task.object_names).")
+        return value
+
+    def mapping(key):
+        value = task.get(key) or {}
+        if not isinstance(value, dict):
+            raise UserError(f"task.{key} = {value!r} must map object names to values.")
+        return value
+
+    holding = task.get("goal_holding")
+    goals = {"holding": obj(holding, "task.goal_holding") if holding is not None else None}
+    goals["on"] = {}
+    for o, s in mapping("goal_regions").items():
+        obj(o, f"task.goal_regions key {o!r}")
+        if s not in surfaces:
+            raise UserError(f"task.goal_regions.{o} = {s!r} is not a table, sink, stove or region of the file.")
+        goals["on"][o] = s
+    goals["stackings"] = {}
+    for o, below in mapping("goal_stackings").items():
+        obj(o, f"task.goal_stackings key {o!r}")
+        obj(below, f"task.goal_stackings.{o}")
+        if below == o:
+            raise UserError(f"task.goal_stackings.{o} = {below!r}: an object cannot stand on itself.")
+        goals["stackings"][o] = below
+    goals["poses"] = {}
+    for o, pose in mapping("goal_poses").items():
+        obj(o, f"task.goal_poses key {o!r}")
+        if pose == "initial":
+            goals["poses"][o] = "initial"
+            continue
+        try:
+            qw, qx, qy, qz, x, y, z = (float(v) for v in pose)
+        except (TypeError, ValueError):
+            raise UserError(f"task.goal_poses.{o} = {pose!r} must be \"initial\" or [qw, qx, qy, qz, x, y, z].") from None
+        T = np.eye(4)
+        T[:3, :3] = rotation({"w": qw, "x": qx, "y": qy, "z": qz}, f"task.goal_poses.{o}")
+        T[:3, 3] = (x, y, z)
+        if T[2, 2] < 1 - 1e-6:
+            raise UserError(f"task.goal_poses.{o} = {pose!r} is not upright; objects are put down upright.")
+        goals["poses"][o] = T
+    for key in ("goal_cleaned", "goal_cooked"):
+        goals[key[5:]] = [obj(o, f"task.{key}") for o in _names(task, key)]
+    if goals["cleaned"] and not _names(task, "sink_names"):
+        raise UserError(f"task.goal_cleaned = {goals['cleaned']!r} but the file has no sink (task.sink_names).")
+    if goals["cooked"] and not _names(task, "stove_names"):
+        raise UserError(f"task.goal_cooked = {goals['cooked']!r} but the file has no stove (task.stove_names).")
+    config = task.get("goal_config")
+    if config not in (None, "initial"):
+        raise UserError(f"task.goal_config = {config!r}: only \"initial\" (the robot returns to its start) is supported.")
+    goals["home"] = config == "initial"
+    twice = set(goals["on"]) & set(goals["stackings"]) | (set(goals["on"]) | set(goals["stackings"])) & set(goals["poses"])
+    if twice:
+        o = sorted(twice)[0]
+        raise UserError(f"task: {o!r} has two placement goals (goal_regions, goal_stackings, goal_poses); keep one.")
+    if holding is not None and holding in set(goals["on"]) | set(goals["stackings"]) | set(goals["poses"]):
+        raise UserError(f"task.goal_holding = {holding!r} must also rest somewhere by another goal; keep one.")
+    if not any((holding, goals["on"], goals["stackings"], goals["poses"], goals["cleaned"], goals["cooked"], goals["home"])):
+        raise UserError(f"task: the file has no goal ({', '.join(GOAL_KEYS)} are all empty).")
+    return goals

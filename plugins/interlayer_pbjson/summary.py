@@ -1,0 +1,53 @@
+"""The scene and task summary ``interlayer check FILE`` prints for a pybullet-planning file."""
+from __future__ import annotations
+
+import math
+
+
+def describe(geometry) -> str:
+    layout = geometry.layout
+    extra = layout.extra
+    bodies = sorted({_body(o.name) for o in layout.fixed} | {_body(o.name) for o in extra.get("floors", [])})
+    lines = [f"{len(layout.objects)} movable object(s), {len(bodies)} fixed bod{'y' if len(bodies) == 1 else 'ies'} "
+             f"({len(layout.fixed)} collision shapes: {', '.join(bodies)})"]
+    kinds = {}
+    for s in geometry.surfaces.values():
+        kinds.setdefault(s.kind, []).append(s)
+    for kind, label in (("table", "tables"), ("region", "regions"), ("sink", "sinks"), ("stove", "stoves"), ("top", "object tops")):
+        if kind in kinds:
+            lines.append(f"  {label}: " + ", ".join(f"{s.name} (z {s.z:.3f}" + (f", {len(s.polygon)}-gon" if kind == "region" else "")
+                                                    + ")" for s in kinds[kind]))
+    world = geometry.initial_world()
+    for o in layout.objects:
+        size = "x".join(f"{v:.3f}" for v in (o.size if o.shape == "box" else (2 * o.size[0], o.size[1])))
+        on = ", ".join(geometry.supports_of(o.name, world.objects[o.name], world)) or "nothing known"
+        lines.append(f"  {o.name}: {o.shape} {size} m at ({o.pose[0]:.3f}, {o.pose[1]:.3f}, {o.pose[2]:.3f}), "
+                     f"yaw {math.degrees(o.pose[3]):.0f} deg, on {on}")
+    b = layout.base
+    torso = extra.get("torso_conf")
+    torso_note = "" if torso is None or abs(torso - extra["torso_height"]) < 1e-9 else f" (raised from {torso:.3f})"
+    lines.append(f"Robot: PR2 base ({b[0]:.3f}, {b[1]:.3f}, {math.degrees(b[2]):.0f} deg), torso {extra['torso_height']:.3f} m"
+                 f"{torso_note}, arms from robots[0].conf: " +
+                 ", ".join(f"{a} [{' '.join(f'{v:.2f}' for v in geometry.start_arms[a])}]" for a in ("left", "right")))
+    lines.append(f"Grasps: {', '.join(g.upper() for g in layout.grasps)}")
+    g = geometry.goals
+    goals = []
+    if g["holding"]:
+        goals.append(f"hold {g['holding']}")
+    goals += [f"{o} on {s}" for o, s in g["on"].items()]
+    goals += [f"{o} stacked on {b}" for o, b in g["stackings"].items()]
+    goals += [f"{o} at " + ("its initial pose" if isinstance(p, str) else "({:.3f}, {:.3f}, {:.3f})".format(*p[:3, 3]))
+              for o, p in g["poses"].items()]
+    goals += [f"{o} cleaned (put on a sink)" for o in g["cleaned"]]
+    goals += [f"{o} cooked (put on a stove once clean)" for o in g["cooked"]]
+    if g["home"]:
+        goals.append("the robot back at its start configuration")
+    lines.append("Goals: " + "; ".join(goals))
+    for note in extra.get("notes", []):
+        lines.append(f"Note: {note}")
+    return "\n".join(lines)
+
+
+def _body(name):
+    head, _, tail = name.rpartition("_")
+    return head if head and tail.isdigit() else name

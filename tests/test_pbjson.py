@@ -1,0 +1,260 @@
+"""The pybullet-planning JSON format (plugins/interlayer_pbjson): reading, every goal kind, clean / cook,
+one-line errors. Scenes are built here; tests of the shared files skip when those are absent."""
+import copy
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from interlayer import api
+from interlayer.errors import UserError
+
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "benchmarks" / "pybullet-planning-json"
+needs_shared = pytest.mark.skipif(not SHARED.is_dir(), reason=f"{SHARED} (beside the checkout) is absent: "
+                                  "the pybullet-planning JSON problems are not part of the project")
+Q0 = {"w": 1.0, "x": 0.0, "y": 0.0, "z": 0.0}
+QZ90 = {"w": math.sqrt(0.5), "x": 0.0, "y": 0.0, "z": math.sqrt(0.5)}  # 90 degrees about z
+
+
+def _p(x, y, z):
+    return {"x": x, "y": y, "z": z}
+
+
+def _box(extents, at=(0, 0, 0), quat=Q0, color=(0.9, 0.9, 0.9)):
+    return {"type": "box", "extents": list(extents), "point": _p(*at), "quat": quat,
+            "color": dict(zip("rgba", (*color, 1.0)))}
+
+
+def _body(name, at, geoms, quat=Q0, aabb=None):
+    b = {"name": name, "point": _p(*at), "quat": quat, "links": [geoms]}
+    if aabb:
+        b["aabb"] = aabb
+    return b
+
+
+def scene(**task):
+    """A table (top 0.75 m, legs, turned 90 degrees), a sink and a stove (meshes without files: their
+    aabb), a goal region on the table and two boxes on it; the PR2 in front."""
+    legs = [{"type": "cylinder", "radius": 0.02, "height": 0.73, "point": _p(sx * 0.55, sy * 0.25, -0.375),
+             "quat": {"w": 0.0, "x": 1.0, "y": 0.0, "z": 0.0}} for sx in (-1, 1) for sy in (-1, 1)]
+    mesh = {"type": "trimesh", "filename": "", "point": _p(0, 0, 0), "quat": Q0, "color": dict(zip("rgba", (0.8, 0.8, 0.9, 1)))}
+    bodies = [
+        _body("table", (1.2, 0.0, 0.74), [_box((0.6, 0.3, 0.01)), *legs], quat=QZ90),
+        _body("sink", (0.0, 1.2, 0.0), [mesh], aabb={"center": [0, 0, 0.35], "extents": [0.2, 0.2, 0.35]}),
+        _body("stove", (0.0, -1.2, 0.0), [mesh], aabb={"center": [0, 0, 0.35], "extents": [0.2, 0.2, 0.35]}),
+        _body("a", (1.1, 0.1, 0.751), [_box((0.03, 0.03, 0.1), (0, 0, 0.1), color=(0, 0, 1))], quat=QZ90),
+        _body("b", (1.2, -0.2, 0.751), [_box((0.03, 0.025, 0.08), (0, 0, 0.08), color=(1, 0, 0))]),
+    ]
+    arm = {"shoulder_pan": 0.0, "shoulder_lift": 0.0, "upper_arm_roll": 0.0, "elbow_flex": -0.15, "forearm_roll": 0.0,
+           "wrist_flex": -0.1, "wrist_roll": 0.0}  # held out straight, as most files have it
+    conf = {"torso_lift_joint": [0.2], **{f"{s}_{j}_joint": [v] for s in "lr" for j, v in arm.items()}}
+    base = {"name": "scene", "floor_object_names": [], "object_names": ["a", "b"], "table_names": ["table"],
+            "sink_names": ["sink"], "stove_names": ["stove"], "grasp_types": ["SIDE"],
+            "regions": [{"name": "goal", "hull": [[1.25, -0.5], [1.25, 0.5], [1.45, 0.5], [1.45, 0.5]], "point": _p(0, 0, 0.75),
+                         "quat": Q0, "color": {"r": 0, "g": 1, "b": 0, "a": 0.5}}],
+            "goal_holding": None, "goal_regions": {}, "goal_poses": {}, "goal_stackings": {}, "goal_cleaned": [],
+            "goal_cooked": [], "goal_config": None}
+    base.update(task)
+    return {"name": "scene", "bodies": bodies, "robots": [{"name": "pr2", "point": _p(0.3, 0.0, 0.0), "quat": Q0, "conf": conf}],
+            "task": base}
+
+
+def load(tmp_path, data, name="scene.json"):
+    from interlayer.plugins import PluginHost
+
+    path = tmp_path / name
+    path.write_text(json.dumps(data))
+    return PluginHost().load_problem(path, {}, 0)
+
+
+def test_shapes_surfaces_and_robot_are_read_as_the_format_defines_them(tmp_path):
+    p = load(tmp_path, scene(goal_holding="a"))
+    layout, g = p.geometry.layout, p.geometry
+    a = layout.obj("a")
+    assert a.shape == "box" and np.allclose(a.size, (0.06, 0.06, 0.2))  # half extents doubled
+    assert np.allclose(a.pose[:3], (1.1, 0.1, 0.851)) and abs(a.pose[3] - math.pi / 2) < 1e-9  # {w, x, y, z}
+    top = layout.obj("table_0")  # the table top, turned 90 degrees with its body: 0.6 m along y
+    assert np.allclose(top.size, (1.2, 0.6, 0.02)) and abs(abs(top.pose[3]) - math.pi / 2) < 1e-9
+    legs = [o for o in layout.fixed if o.name.startswith("table_") and o.shape == "cylinder"]
+    assert len(legs) == 4 and all(abs(o.pose[2] - 0.365) < 1e-9 for o in legs)  # flipped about x: still upright
+    assert layout.obj("sink").size == pytest.approx((0.4, 0.4, 0.7))  # a mesh without its file: its aabb
+    s = g.surfaces
+    assert s["table"].z == pytest.approx(0.75) and s["sink"].kind == "sink" and s["stove"].z == pytest.approx(0.7)
+    assert s["goal"].kind == "region" and len(s["goal"].polygon) == 4  # the box around the hull's points
+    assert g.robot.torso_height == pytest.approx(max(0.2, layout.extra["torso_height"]))
+    assert g.initial_world().arms["left"][3] == pytest.approx(-0.15)  # the elbow from robots[0].conf
+    assert layout.extra["colors"]["a"] == (0, 0, 1, 1.0)
+    assert ("On", "a", "table") in p.init and ("On", "b", "goal") not in p.init
+
+
+def test_each_goal_kind_is_a_task_level_goal(tmp_path):
+    cases = {
+        "goal_holding": ("a", "(or (Holding a left) (Holding a right))"),
+        "goal_regions": ({"a": "goal"}, "(On a goal)"),
+        "goal_stackings": ({"b": "a"}, "(On b a_top)"),
+        "goal_poses": ({"a": [1, 0, 0, 0, 1.3, 0.0, 0.751]}, "(AtGoalPose a)"),
+        "goal_cleaned": (["a"], "(Cleaned a)"),
+        "goal_cooked": (["a"], "(Cooked a)"),
+        "goal_config": ("initial", "(AtHome)"),
+    }
+    for key, (value, atom) in cases.items():
+        p = load(tmp_path, scene(**{key: value}))
+        assert atom in p.goal, (key, p.goal)
+    p = load(tmp_path, scene(goal_stackings={"b": "a"}))
+    assert ("TopOf", "a_top", "a") in p.init and "a_top" in p.objects
+
+
+def test_initial_pose_goal_holds_at_the_start_and_after_a_return(tmp_path):
+    p = load(tmp_path, scene(goal_poses={"a": "initial"}))
+    g = p.geometry
+    w = g.initial_world()
+    assert ("AtGoalPose", "a") in p.init
+    P = w.objects["a"]
+    assert g.at_goal_pose("a", P)
+    from interlayer_pr2.world import pose4, rz
+
+    assert g.at_goal_pose("a", P @ rz(math.pi / 2))  # a square box: any quarter turn is the same pose
+    assert not g.at_goal_pose("a", pose4(P[0, 3] + 0.05, P[1, 3], P[2, 3], 0.0))
+    moved = load(tmp_path, scene(goal_poses={"a": [1, 0, 0, 0, 1.3, 0.0, 0.751]}))
+    assert ("AtGoalPose", "a") not in moved.init
+    C = moved.geometry.layout.extra["goal_centres"]["a"]
+    assert np.allclose(C[:3, 3], (1.3, 0.0, 0.851))  # the body pose of the file, to the box's centre
+
+
+def test_clean_and_cook_semantics(tmp_path):
+    """Symbolically: placing on the sink cleans; on the stove cooks only a clean object. The validator
+    replays the releases of a trajectory the same way."""
+    from interlayer.abstraction import abstract
+    from interlayer.domain import GroundStep
+
+    p = load(tmp_path, scene(goal_cooked=["a"]))
+    m = abstract(p)
+
+    def place(state, surf):
+        held = m.progress(state, GroundStep("pick", ("a", "left", "right", "bpfg_a_left", "gpfg_a_left", "gpfg_a_right")))
+        return m.progress(held, GroundStep("place", ("a", "left", surf, "s1", f"bpfpd_a_left_{surf}_s1",
+                                                      f"gpfpd_a_left_{surf}_s1")))
+
+    s0 = m.init
+    dirty = place(s0, "stove")
+    assert ("Cooked", "a") not in dirty and ("Cleaned", "a") not in dirty
+    clean = place(s0, "sink")
+    assert ("Cleaned", "a") in clean and ("On", "a", "sink") in clean
+    assert ("Cooked", "a") in place(clean, "stove")
+    g = p.geometry
+    from interlayer_pr2.world import pose4
+
+    on = {"sink": pose4(0.0, 1.2, 0.802, 0.0), "stove": pose4(0.0, -1.2, 0.802, 0.0)}  # resting on their tops
+    rel = lambda k: {"kind": "release", "arm": "left", "object": "a", "pose": on[k].tolist()}  # noqa: E731
+    world = g.initial_world()
+    traj = lambda *ks: {"steps": [{"segments": [rel(k) for k in ks]}]}  # noqa: E731
+    assert any("cooked" in v for v in g.goal_violations(world, traj("stove", "sink")))
+    assert not any("cooked" in v for v in g.goal_violations(world, traj("sink", "stove")))
+
+
+def test_a_stacking_placement_is_sampled_on_the_top_of_the_object_below(tmp_path):
+    from dataclasses import replace
+
+    from interlayer.domain import GroundStep
+    from interlayer_pbjson.samplers import PBSampler
+    from interlayer_pr2.generators import grasp_poses
+
+    p = load(tmp_path, scene(goal_stackings={"b": "a"}))
+    g = p.geometry
+    w = replace(g.initial_world(), base=(0.6, -0.2, 0.0))
+    P = w.objects["b"]
+    _, T = grasp_poses(g, "b", P, 0.0, ("side",), np.random.default_rng(0), n_side=1)[0]
+    w = replace(w, objects={k: v for k, v in w.objects.items() if k != "b"}, held={"left": ("b", np.linalg.inv(T) @ P)})
+    w = w.with_arm("left", g.carry(w, "left", np.random.default_rng(0)))
+    step = GroundStep("place", ("b", "left", "a_top", "s1", "bpfpd_b_left_a_top_s1", "gpfpd_b_left_a_top_s1"))
+    found = list(PBSampler([0])(p, step, w, np.random.default_rng(0)))
+    assert found
+    Q, A = np.asarray(found[0].values["object_pose"]), w.objects["a"]
+    assert g.supports_of("b", Q, w) == ["a_top"] and np.hypot(*(Q[:2, 3] - A[:2, 3])) < 0.03
+
+
+@pytest.mark.parametrize("edit, field", [
+    (lambda d: d["bodies"][3]["links"][0][0].update(type="capsule"), "bodies[3] (a).links[0][0].type = 'capsule'"),
+    (lambda d: d["task"].update(goal_regions={"ghost": "goal"}), "task.goal_regions key 'ghost'"),
+    (lambda d: d["task"].update(goal_regions={"a": "nowhere"}), "task.goal_regions.a = 'nowhere'"),
+    (lambda d: d["task"].update(goal_stackings={"a": "ghost"}), "task.goal_stackings.a = 'ghost'"),
+    (lambda d: d["task"].update(goal_poses={"a": "somewhere"}), "task.goal_poses.a = 'somewhere'"),
+    (lambda d: d["task"].update(goal_config="kneel"), "task.goal_config = 'kneel'"),
+    (lambda d: d["task"].update(grasp_types=["PINCH"]), "task.grasp_types"),
+    (lambda d: d["bodies"][0]["links"][0][1].update(quat={"w": 0.92, "x": 0.38, "y": 0, "z": 0}), "bodies[0] (table).links[0][1].quat"),
+    (lambda d: d["robots"][0]["conf"].update(l_elbow_flex_joint=[1.0]), "robots[0].conf.l_elbow_flex_joint"),
+    (lambda d: d["task"].update(object_names=["a", "ghost"]), "task.object_names names 'ghost'"),
+    (lambda d: d["robots"][0].update(point=_p(1.2, 0.0, 0.0)), "robots[0]: the PR2 at its start"),
+    (lambda d: d["task"]["regions"][0].update(hull=[[1.3, 0.0], [1.3, 0.0]]), "task.regions[0].hull"),
+])
+def test_unsupported_input_is_one_line_naming_the_field(tmp_path, edit, field):
+    data = copy.deepcopy(scene(goal_holding="a"))
+    edit(data)
+    with pytest.raises(UserError) as err:
+        load(tmp_path, data)
+    msg = str(err.value)
+    assert field in msg and "\n" not in msg, msg
+
+
+def test_check_prints_the_scene_and_task_summary(tmp_path, capsys):
+    from interlayer.cli import main
+
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(scene(goal_regions={"a": "goal"}, goal_config="initial")))
+    assert main(["check", str(path)]) == 0
+    out = capsys.readouterr().out
+    for text in ("2 movable object(s)", "tables: table (z 0.750)", "regions: goal", "sinks: sink", "stoves: stove",
+                 "a: box 0.060x0.060x0.200 m", "on table", "Robot: PR2 base (0.300, 0.000, 0 deg)",
+                 "Goals: a on goal; the robot back at its start configuration", "mesh without its file", "bpfpd_a_left_goal_s1"):
+        assert text in out, text
+
+
+def test_a_region_goal_and_the_return_home_solve_and_validate(tmp_path):
+    data = scene(goal_regions={"b": "goal"}, goal_config="initial")
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(data))
+    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=120"])
+    assert result.status == "solved", result.reason
+    assert [s.action for s in result.plan][-1] == "go_home"
+    api.write_outputs(result, tmp_path / "out")
+    assert api.validate(tmp_path / "out") == []
+
+
+@pytest.mark.slow
+def test_a_given_and_an_initial_pose_goal_solve_and_validate(tmp_path):
+    """a goes to a given pose on the far side of b; b must end where it started (moved or not)."""
+    data = scene(goal_poses={"a": [1, 0, 0, 0, 1.35, -0.2, 0.751], "b": "initial"})
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(data))
+    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=200"])
+    assert result.status == "solved", result.reason
+    api.write_outputs(result, tmp_path / "out")
+    assert api.validate(tmp_path / "out") == []
+
+
+@needs_shared
+def test_every_shared_file_loads_with_its_goals():
+    from interlayer.plugins import PluginHost
+
+    host = PluginHost()
+    for path in sorted(SHARED.glob("*.json")):
+        p = host.load_problem(path, {}, 0)
+        assert p.domain.name == "pr2-pbjson" and p.goal.startswith("(and "), path.name
+    p = host.load_problem(SHARED / "srivastava_table_r040.json", {}, 0)
+    assert len(p.geometry.layout.objects) == 40 and "(Holding object1 left)" in p.goal and "(AtHome)" in p.goal
+    k = host.load_problem(SHARED / "kitchen.json", {}, 0)
+    assert "(Cleaned blue)" in k.goal and "(Cooked green)" in k.goal
+
+
+@needs_shared
+def test_papers_scene_as_shipped_is_unsolvable_by_gripper_width(tmp_path):
+    import time
+
+    t0 = time.perf_counter()
+    result = api.solve(str(SHARED / "srivastava_table.json"))
+    assert result.status == "unsolvable"
+    assert "0.100 m wide" in result.reason and "gripper opens only" in result.reason
+    assert time.perf_counter() - t0 < 30
+    api.write_outputs(result, tmp_path)
+    assert "problem" in (tmp_path / "config.toml").read_text()  # rebuildable: problem.file is recorded
