@@ -68,7 +68,6 @@ class ClutterSampler(EpochState):
         with nothing in its way (fresh samples would bring fresh blockers)."""
         obj, arm = step.args[0], step.args[1]
         bp_ref, gp_ref = step.args[3], step.args[4]
-        geometry = problem.geometry
         if world.holder(obj) is not None or world.held.get(arm):
             return
         ranked = self.ranked_grasps(problem, world, obj, arm)

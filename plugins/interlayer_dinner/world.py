@@ -240,17 +240,17 @@ class DinnerGeometry(PR2Geometry):
                              f"{arm}_arm", segs, {}, w, acc)
             if not res.ok:
                 return _failure(res, f"tray transit ({arm})", "tray")
-            w = w.with_arm(arm, line[0]).with_gripper(arm, "open")
-            if self.in_collision(w):
-                return self._stuck(w, "opening the gripper before the tray", "tray")
-            segs.append({"kind": "gripper", "arm": arm, "command": "open"})
+            w, stuck = self.set_gripper(w.with_arm(arm, line[0]), arm, "open", segs,
+                                        "opening the gripper before the tray", "tray")
+            if stuck:
+                return stuck
             res = self._line(w, arm, line, "approach", segs, acc)
             if not res.ok:
                 return _failure(res, f"tray approach ({arm})", "tray")
-            w = w.with_arm(arm, line[-1]).with_gripper(arm, TRAY_GRIP)
-            if self.in_collision(w):
-                return self._stuck(w, "closing the gripper around the tray", "tray")
-            segs.append({"kind": "gripper", "arm": arm, "command": "close", "width": TRAY_GRIP})
+            w, stuck = self.set_gripper(w.with_arm(arm, line[-1]), arm, TRAY_GRIP, segs,
+                                        "closing the gripper around the tray", "tray")
+            if stuck:
+                return stuck
         names = self.assembly(w)
         Binv = np.linalg.inv(base_matrix(w.base))
         w = replace(w, objects={k: v for k, v in w.objects.items() if k not in names},
@@ -270,17 +270,16 @@ class DinnerGeometry(PR2Geometry):
         w = replace(w, objects={**w.objects, **poses}, carrying={})
         segs.append({"kind": "set_down", "objects": {k: P.tolist() for k, P in poses.items()}})
         for arm, back in zip(("left", "right"), retreats):
-            w = w.with_gripper(arm, "open")
-            if self.in_collision(w):
-                return self._stuck(w, "opening the gripper on the tray")
-            segs.append({"kind": "gripper", "arm": arm, "command": "open"})
+            w, stuck = self.set_gripper(w, arm, "open", segs, "opening the gripper on the tray")
+            if stuck:
+                return stuck
             res = self._line(w, arm, back, "retreat", segs, acc)
             if not res.ok:
                 return _failure(res, f"tray retreat ({arm})")
-            w = w.with_arm(arm, back[-1]).with_gripper(arm, "closed")
-            if self.in_collision(w):
-                return self._stuck(w, "closing the gripper after the retreat")
-            segs.append({"kind": "gripper", "arm": arm, "command": "close"})
+            w, stuck = self.set_gripper(w.with_arm(arm, back[-1]), arm, "closed", segs,
+                                        "closing the gripper after the retreat")
+            if stuck:
+                return stuck
         # a tucked arm folds across the front, where the other arm still reaches: raise the left one
         # beside its shoulder first, tuck the right, then the left
         raised = self.raised(w, "left")
@@ -309,10 +308,10 @@ class DinnerGeometry(PR2Geometry):
                          f"{dst}_arm", segs, _holding(w), w, acc)
         if not res.ok:
             return _failure(res, "handoff transit")
-        w = w.with_arm(dst, approach[0]).with_gripper(dst, "open")
-        if self.in_collision(w):
-            return self._stuck(w, "opening the receiving gripper", obj)
-        segs.append({"kind": "gripper", "arm": dst, "command": "open"})
+        w, stuck = self.set_gripper(w.with_arm(dst, approach[0]), dst, "open", segs,
+                                    "opening the receiving gripper", obj)
+        if stuck:
+            return stuck
         res = self._line(w, dst, approach, "approach", segs, acc)
         if not res.ok:
             return _failure(res, "handoff approach")

@@ -55,17 +55,17 @@ class DrawerGeometry(PR2Geometry):
                          group, segs, _holding(w), w, acc)
         if not res.ok:
             return _failure(res, "handle transit")
-        w = w.with_arm(arm, approach[0]).with_gripper(arm, "open")
-        if self.in_collision(w):
-            return self._stuck(w, "opening the gripper before the handle")
-        segs.append({"kind": "gripper", "arm": arm, "command": "open"})
+        w, stuck = self.set_gripper(w.with_arm(arm, approach[0]), arm, "open", segs,
+                                    "opening the gripper before the handle")
+        if stuck:
+            return stuck
         res = self._line(w, arm, approach, "approach", segs, acc)
         if not res.ok:
             return _failure(res, "handle approach")
-        w = w.with_arm(arm, approach[-1]).with_gripper(arm, HANDLE_GRIP)
-        if self.in_collision(w):
-            return self._stuck(w, "closing the gripper around the handle")
-        segs.append({"kind": "gripper", "arm": arm, "command": "close", "width": HANDLE_GRIP})
+        w, stuck = self.set_gripper(w.with_arm(arm, approach[-1]), arm, HANDLE_GRIP, segs,
+                                    "closing the gripper around the handle")
+        if stuck:
+            return stuck
         out = self.pull(step, w, arm, CABINET, HANDLE_LINK, pull, segs)
         if not out.ok:
             return out

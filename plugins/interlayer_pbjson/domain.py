@@ -89,7 +89,7 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
             parameters=(("?o", "obj"), ("?arm", "arm"), ("?bp", "bpose"), ("?pd", "pdpose")),
             precondition=f"""(and (Holding ?o ?arm) (HasGoalPose ?o) (IsBPFGP ?bp ?o ?arm) (IsGPFGP ?pd ?o ?arm)
                                   (forall (?b - obj) (not (PDObstructs ?b ?pd))){' (not (AtHome))' if home else ''})""",
-            effect=f"(and (not (Holding ?o ?arm)) (HandEmpty ?arm) (Resting ?o) (AtGoalPose ?o))",
+            effect="(and (not (Holding ?o ?arm)) (HandEmpty ?arm) (Resting ?o) (AtGoalPose ?o))",
             learn={"obstruction": ("(PDObstructs ?blocker ?pd)",)}, pose_generator="pbjson:place"))
     if home:
         actions.append(ActionSpec(name="go_home", parameters=(), precondition="(not (AtHome))", effect="(AtHome)",

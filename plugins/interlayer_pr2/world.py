@@ -498,10 +498,10 @@ class PR2Geometry:
                          _holding(w), w, acc)
         if not res.ok:
             return _failure(res, "pick transit", obj)
-        w = w.with_arm(arm, pre).with_gripper(arm, "open")
-        if self.in_collision(w):
-            return self._stuck(w, "opening the gripper at the pre-grasp", obj)
-        segs.append({"kind": "gripper", "arm": arm, "command": "open"})
+        w, stuck = self.set_gripper(w.with_arm(arm, pre), arm, "open", segs,
+                                    "opening the gripper at the pre-grasp", obj)
+        if stuck:
+            return stuck
         res = self._line(w, arm, approach, "approach", segs, acc)
         if not res.ok:
             return _failure(res, "pick approach", obj)
@@ -569,10 +569,10 @@ class PR2Geometry:
         res = self._line(w, arm, retreat, "retreat", segs, acc)
         if not res.ok:
             return _failure(res, f"{what} retreat")
-        w = w.with_arm(arm, retreat[-1]).with_gripper(arm, "closed")
-        if self.in_collision(w):
-            return self._stuck(w, "closing the gripper after the retreat")
-        segs.append({"kind": "gripper", "arm": arm, "command": "close"})
+        w, stuck = self.set_gripper(w.with_arm(arm, retreat[-1]), arm, "closed", segs,
+                                    "closing the gripper after the retreat")
+        if stuck:
+            return stuck
         res = self._plan(motion, self.arm_query(w, arm, retreat[-1], TUCKED_ARMS[arm], f"{what} tuck", acc), "transit",
                          group, segs, _holding(w), w, acc)
         if not res.ok:
@@ -646,6 +646,16 @@ class PR2Geometry:
         seg.update(body=body, link=link)
         segs.append(seg)
         return StepOutcome(True, last, segs)
+
+    def set_gripper(self, w, arm, state, segs, what, exclude=None):
+        """The arm's gripper set to ``state`` ("open", "closed" or a width in metres) where it is: the new
+        world and None, or the failure if the fingers then collide (``what`` names the moment)."""
+        w = w.with_gripper(arm, state)
+        if self.in_collision(w):
+            return w, self._stuck(w, what, exclude)
+        seg = {"kind": "gripper", "arm": arm, "command": "open" if state == "open" else "close"}
+        segs.append(seg if isinstance(state, str) else {**seg, "width": state})
+        return w, None
 
     def _stuck(self, w, what, exclude=None):
         q = self.sync(w)
