@@ -6,6 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 from interlayer.refine import Candidate, EpochState
+from interlayer_pr2.generators import _base_free
 from interlayer_pr2.scene import REST_GAP, base_limits, table_top
 from interlayer_pr2.world import ARMS, pose4
 
@@ -251,12 +252,6 @@ def _with_hover(geometry, world, arm, T, wps, rng, obj):
 
 
 CORRIDOR = 0.15  # m: put-down spots keep this far from the footprint of the target's best approaches
-
-
-def _base_free(geometry, world, base):
-    from interlayer_pr2.generators import _base_free as free
-
-    return free(geometry, world, base)
 
 
 def _table_spots(geometry, world, obj, rng, tries, want=12):

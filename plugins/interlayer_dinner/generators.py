@@ -26,7 +26,7 @@ import numpy as np
 
 from interlayer.refine import Candidate
 from interlayer_pinocchio import TUCKED_ARMS
-from interlayer_pr2.generators import _bearing, _fmt, _line, _problem_grasps, _putdown, _waypoints, grasp_poses
+from interlayer_pr2.generators import _base_free, _bearing, _fmt, _line, _problem_grasps, _putdown, _waypoints, grasp_poses
 from interlayer_pr2.world import LIFT, PRE_GRASP, pose4, trans, wrap
 
 from .scene import HOME, TRAY, near_base, tray_spot
@@ -39,11 +39,6 @@ PRE_TRAY = 0.10  # approach to / retreat from the tray's edge along the tool x a
 ROLL = np.array([[1, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1.0]])  # fingers closing vertically
 
 
-def _free(geometry, world, base) -> bool:
-    return geometry.base_space.within_bounds(base) and not geometry.in_collision(replace(world, base=tuple(base)),
-                                                                                 movables=False)
-
-
 def go(problem, step, world, rng, limit: int = 6, tries: int = 60):
     geometry = problem.geometry
     hx, hy, ht = HOME[step.args[1]]
@@ -51,7 +46,7 @@ def go(problem, step, world, rng, limit: int = 6, tries: int = 60):
     for k in range(tries):
         base = (hx, hy, float(wrap(ht))) if k == 0 else (hx + float(rng.uniform(-0.25, 0.25)), hy + float(rng.uniform(-0.4, 0.4)),
                                             float(wrap(ht + rng.uniform(-0.5, 0.5))))
-        if _free(geometry, world, base):
+        if _base_free(geometry, world, base):
             n += 1
             yield Candidate((base,), {}, f"base at {_fmt(base)} in {step.args[1]}")
             if n >= limit:
@@ -70,12 +65,16 @@ def pick(problem, step, world, rng, limit: int = 4, tries: int = 60):
     x, y = P[0, 3], P[1, 3]
     n = 0
     for i, base in enumerate([tuple(world.base)] + [near_base(rng, x, y) for _ in range(tries)]):
-        if not _free(geometry, world, base):
+        if not _base_free(geometry, world, base):
             continue
         w = replace(world, base=base)
         for kind, T in grasp_poses(geometry, obj, P, _bearing(base, x, y), _problem_grasps(problem, obj), rng, n_side=2):
             wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,))
-            if wps is None or geometry._movables_on_line(w.with_gripper(arm, "open"), arm, wps[0], [0.0]) - {obj}:
+            if wps is None:
+                continue
+            with geometry.stats.timer("collision_checking"):  # the approach must be clear: nothing to learn here
+                blocked = geometry._movables_on_line(w.with_gripper(arm, "open"), arm, wps[0], [0.0]) - {obj}
+            if blocked:
                 continue
             n += 1
             yield Candidate((base, *wps), {}, f"{'stay at' if i == 0 else 'base at'} {_fmt(base)}, {kind} grasp")
@@ -118,7 +117,7 @@ def _put(problem, step, world, rng, P, values, limit, tries):
     n = 0
     for _ in range(tries):
         base = near_base(rng, x, y)
-        if not _free(geometry, world, base):
+        if not _base_free(geometry, world, base):
             continue
         Q, T = _putdown(G, x, y, z, _bearing(base, x, y) + rng.uniform(-0.3, 0.3))
         w = replace(world, base=base)
@@ -164,7 +163,7 @@ def pick_tray(problem, step, world, rng, limit: int = 4, tries: int = 40):
     for k in range(tries):
         d, dy, dyaw = (0.68, 0.0, 0.0) if k == 0 else (rng.uniform(0.58, 0.78), rng.uniform(-0.08, 0.08), rng.uniform(-0.2, 0.2))
         base = _base_of(P @ trans(-d, dy, 0.0) @ pose4(0, 0, 0, dyaw))
-        if not _free(geometry, world, base):
+        if not _base_free(geometry, world, base):
             continue
         w = replace(world, base=base)
         lines = []

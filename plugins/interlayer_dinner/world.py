@@ -11,7 +11,6 @@ take_off_tray, unstack) drives and grasps; ``go`` drives through the doorway to 
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 
 import coal
@@ -21,7 +20,7 @@ from interlayer.domain import GroundStep
 from interlayer.motion import MotionQuery
 from interlayer.refine import Failure, StepOutcome
 from interlayer_pinocchio import TUCKED_ARMS
-from interlayer_pr2.scene import REST_GAP
+from interlayer_pr2.scene import REST_GAP, _radius
 from interlayer_pr2.world import CARRY, PADDING, PR2Geometry, World, _failure, _holding, pose4, rz, trans
 
 from .scene import TOP, TRAY
@@ -59,8 +58,7 @@ class DinnerGeometry(PR2Geometry):
         super().__init__(layout, padding=padding)
         self.kinds = layout.extra["kinds"]
         self.slots = {f"slot{k + 1}": xy for k, xy in enumerate(layout.extra["slots"])}
-        self._radius = {o.name: (o.size[0] if o.shape == "cylinder" else 0.5 * math.hypot(o.size[0], o.size[1]))
-                        for o in layout.fixed + layout.objects}
+        self._radius = {o.name: _radius(o) for o in layout.fixed + layout.objects}
         self._request = coal.CollisionRequest()
         self._fixed_tf = {o.name: _coal_tf(pose4(*o.pose)) for o in layout.fixed}
         self._boxes = {o.name: (o.pose[:2], (o.size[0] / 2 + padding, o.size[1] / 2 + padding)) for o in layout.fixed}
@@ -221,20 +219,12 @@ class DinnerGeometry(PR2Geometry):
             self.stats.add_time("collision_checking", acc[0])
         raise ValueError(step.action)
 
-    def _drive(self, world, base, label, segs, motion, acc):
-        if self.base_space.distance(np.asarray(world.base, float), np.asarray(base, float)) <= 1e-9:
-            return None
-        res = self._plan(motion, self.base_query(world, world.base, base, label, acc), "base", "base", segs,
-                         {}, world, acc)
-        return None if res.ok else _failure(res, label)
-
     def _pick_tray(self, world, cand, motion, acc):
         base, *lines = cand.waypoints
         segs = []
-        failed = self._drive(world, tuple(base), "tray drive", segs, motion, acc)
+        w, failed = self.drive(world, base, "tray drive", segs, motion, acc)
         if failed:
             return failed
-        w = replace(world, base=tuple(float(v) for v in base))
         for arm, line in zip(("left", "right"), lines):
             res = self._plan(motion, self.arm_query(w, arm, w.arms[arm], line[0], "tray transit", acc), "transit",
                              f"{arm}_arm", segs, {}, w, acc)
@@ -261,10 +251,9 @@ class DinnerGeometry(PR2Geometry):
     def _place_tray(self, world, cand, motion, acc):
         base, *retreats = cand.waypoints
         segs = []
-        failed = self._drive(world, tuple(base), "tray drive", segs, motion, acc)
+        w, failed = self.drive(world, base, "tray drive", segs, motion, acc)
         if failed:
             return failed
-        w = replace(world, base=tuple(float(v) for v in base))
         B = base_matrix(w.base)
         poses = {k: B @ rel for k, rel in w.carrying.items()}
         w = replace(w, objects={**w.objects, **poses}, carrying={})
@@ -273,13 +262,9 @@ class DinnerGeometry(PR2Geometry):
             w, stuck = self.set_gripper(w, arm, "open", segs, "opening the gripper on the tray")
             if stuck:
                 return stuck
-            res = self._line(w, arm, back, "retreat", segs, acc)
-            if not res.ok:
-                return _failure(res, f"tray retreat ({arm})")
-            w, stuck = self.set_gripper(w.with_arm(arm, back[-1]), arm, "closed", segs,
-                                        "closing the gripper after the retreat")
-            if stuck:
-                return stuck
+            w, failed = self.retreat(w, arm, back, f"tray retreat ({arm})", segs, acc)
+            if failed:
+                return failed
         # a tucked arm folds across the front, where the other arm still reaches: raise the left one
         # beside its shoulder first, tuck the right, then the left
         raised = self.raised(w, "left")

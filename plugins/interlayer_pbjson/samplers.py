@@ -18,8 +18,9 @@ from dataclasses import replace
 
 import numpy as np
 from interlayer.refine import Candidate
-from interlayer_clutter.samplers import ClutterSampler, _base_free, _base_near, _coarse, _fmt, _in_corridors, _movables_on
-from interlayer_pr2.scene import REST_GAP
+from interlayer_clutter.samplers import ClutterSampler, _base_near, _coarse, _fmt, _in_corridors, _movables_on
+from interlayer_pr2.generators import _base_free
+from interlayer_pr2.scene import REST_GAP, _radius
 from interlayer_pr2.world import pose4
 
 from .scene import inside, polygon_of
@@ -150,10 +151,6 @@ class PBSampler(ClutterSampler):
 def go_home(problem, step, world, rng):
     """The one way home: the start base pose (the arms' start joints are the geometry's)."""
     yield Candidate((tuple(problem.geometry.layout.base),), {}, "back to the start configuration")
-
-
-def _radius(spec) -> float:
-    return spec.size[0] if spec.shape == "cylinder" else 0.5 * math.hypot(spec.size[0], spec.size[1])
 
 
 def _spec_at(spec, P):

@@ -17,6 +17,7 @@ import numpy as np
 from interlayer.errors import UserError
 from interlayer.refine import StepOutcome
 from interlayer_pr2.scene import REST_GAP
+from interlayer_pr2.validate import upright
 from interlayer_pr2.world import ARMS, PADDING, PR2Geometry, _failure, _holding, pose4, wrap
 
 from .scene import ON_TOL, inside, top_name
@@ -110,7 +111,7 @@ class PBGeometry(PR2Geometry):
 
     def resting_on(self, obj, P, world):
         """Why a release of obj at P is not a stable placement (None: it rests on a surface or object)."""
-        if P[2, 2] < math.cos(math.radians(2)):
+        if not upright(P):
             return "not upright"
         if self.supports_of(obj, P, world, tol=REST_GAP + 0.005):
             return None
@@ -199,14 +200,10 @@ class PBGeometry(PR2Geometry):
         return w, None
 
     def _go_home(self, world, motion, acc):
-        segs, w = [], world
-        home = tuple(float(v) for v in self.layout.base)
-        if self.base_space.distance(np.asarray(w.base, float), np.asarray(home, float)) > 1e-9:
-            res = self._plan(motion, self.base_query(w, w.base, home, "go_home drive", acc), "base", "base", segs,
-                             _holding(w), w, acc)
-            if not res.ok:
-                return _failure(res, "go_home drive")
-            w = replace(w, base=home)
+        segs = []
+        w, failed = self.drive(world, self.layout.base, "go_home drive", segs, motion, acc)
+        if failed:
+            return failed
         for arm in ARMS:
             if arm in w.held or np.allclose(w.arms[arm], self.start_arms[arm], atol=1e-9):
                 continue

@@ -3,8 +3,10 @@ import math
 
 from interlayer import hookimpl
 
-# trajectory timing (TOPP-RA); arm velocities are the URDF's limits. PR2 domains may accept these keys too.
-TIMING = {"arm_acceleration": 1.5, "base_velocity": [0.5, 0.5, 1.0], "base_acceleration": [0.5, 0.5, 1.0]}
+# Trajectory timing (TOPP-RA): arm joints at most their URDF velocity limits; PR2 domains may accept these keys too.
+TIMING = {"arm_acceleration": 1.5,  # rad/s^2, every arm joint
+          "base_velocity": [0.5, 0.5, 1.0],  # m/s, m/s, rad/s (x, y, theta; the URDF gives none)
+          "base_acceleration": [0.5, 0.5, 1.0]}  # m/s^2, m/s^2, rad/s^2
 PARAMS = {"goal": "hold", "grasps": ["side"], "target_radius": 0.035, "clutter": 0, **TIMING}
 
 

@@ -21,6 +21,7 @@ from interlayer.motion import Clearance, ConfigSpace, InterpolatingPlanner, Moti
 from interlayer.refine import Failure, StepOutcome
 from interlayer.trace import Stats
 
+from .plugin import TIMING  # defaults, overridden by the problem keys of the same names (layout.extra)
 from .scene import Layout, base_limits
 
 ARMS = ("left", "right")
@@ -32,11 +33,6 @@ PADDING = 0.015
 RES_BASE = 0.01  # m / rad between collision checks when planning the base
 PRE_GRASP = 0.20  # back-off of the pre-grasp along the tool x axis (approach and retreat length)
 LIFT = 0.05  # raise after grasping / height above the put-down spot
-# Timing (TOPP-RA): arm joints at most their URDF velocity limits; these defaults are overridden by the
-# problem keys of the same names (layout.extra).
-TIMING = {"arm_acceleration": 1.5,  # rad/s^2, every arm joint
-          "base_velocity": [0.5, 0.5, 1.0],  # m/s, m/s, rad/s (x, y, theta; the URDF gives none)
-          "base_acceleration": [0.5, 0.5, 1.0]}  # m/s^2, m/s^2, rad/s^2
 FOLLOWS = 1e3  # the velocity / acceleration "limit" of a joint driven by the hand (a drawer's slide)
 # First IK seed for reaching forward at table height (elbow up, measured typical solutions)
 REACH_SEED = {"left": (-0.4, -0.25, 3.3, -1.53, 2.75, -1.2, 0.0), "right": (0.4, -0.25, -3.3, -1.53, -2.75, -1.2, 0.0)}
@@ -340,11 +336,10 @@ class PR2Geometry:
                 return StepOutcome(False, failure=Failure("obstruction", tuple(sorted(blockers)),
                                                           "pick approach: blocked by " + ", ".join(sorted(blockers))))
         segs = []
-        if self.base_space.distance(np.asarray(world.base, float), np.asarray(base, float)) > 1e-9:
-            res = self._plan(motion, self.base_query(world, world.base, base, f"{step.action} drive", acc), "base", "base",
-                             segs, _holding(world), world, acc)
-            if not res.ok:
-                return _failure(res, f"{step.action} drive", step.args[0] if step.action == "pick" else None)
+        _, failed = self.drive(world, base, f"{step.action} drive", segs, motion, acc,
+                               step.args[0] if step.action == "pick" else None)
+        if failed:
+            return failed
         if step.action == "place" and "tloc" in cand.values:
             obj, P = cand.values["tloc"]
             w = replace(w, tloc={obj: np.asarray(P)})
@@ -354,6 +349,17 @@ class PR2Geometry:
         elif out.failure is not None and out.failure.kind == "obstruction" and "transit" in out.failure.detail:
             out = self._fewer_blockers(step, w, inner, out, acc)
         return out
+
+    def drive(self, world, base, label, segs, motion, acc, exclude=None):
+        """The base driven to ``base`` (an SE(2) path planned around everything; no segment if it is
+        there already): the world there and None, or ``world`` and the failure."""
+        base = tuple(float(v) for v in base)
+        if self.base_space.distance(np.asarray(world.base, float), np.asarray(base, float)) > 1e-9:
+            res = self._plan(motion, self.base_query(world, world.base, base, label, acc), "base", "base", segs,
+                             _holding(world), world, acc)
+            if not res.ok:
+                return world, _failure(res, label, exclude)
+        return replace(world, base=base), None
 
     def _movables_on_line(self, w, arm, path, acc) -> set:
         """Movables the arm touches along the piecewise-straight ``path`` (at the planning resolution)."""
@@ -561,18 +567,22 @@ class PR2Geometry:
         segs.append({"kind": "release", "arm": arm, "object": obj, "pose": P.tolist()})
         return self.retreat_and_tuck(motion, w, arm, group, (put, *back), "place", segs, acc)
 
+    def retreat(self, w, arm, path, label, segs, acc):
+        """The open hand's straight retreat along ``path``, then the gripper closed: the world after and
+        None, or the failure (``label`` names the retreat)."""
+        res = self._line(w, arm, path, "retreat", segs, acc)
+        if not res.ok:
+            return w, _failure(res, label)
+        return self.set_gripper(w.with_arm(arm, path[-1]), arm, "closed", segs, "closing the gripper after the retreat")
+
     def retreat_and_tuck(self, motion, w, arm, group, retreat, what, segs, acc):
         """The open hand's straight retreat along ``retreat``, the gripper closed, the arm tucked: the
         end of every step that lets go of something (``what`` names it in failures)."""
         from interlayer_pinocchio import TUCKED_ARMS
 
-        res = self._line(w, arm, retreat, "retreat", segs, acc)
-        if not res.ok:
-            return _failure(res, f"{what} retreat")
-        w, stuck = self.set_gripper(w.with_arm(arm, retreat[-1]), arm, "closed", segs,
-                                    "closing the gripper after the retreat")
-        if stuck:
-            return stuck
+        w, failed = self.retreat(w, arm, retreat, f"{what} retreat", segs, acc)
+        if failed:
+            return failed
         res = self._plan(motion, self.arm_query(w, arm, retreat[-1], TUCKED_ARMS[arm], f"{what} tuck", acc), "transit",
                          group, segs, _holding(w), w, acc)
         if not res.ok:
