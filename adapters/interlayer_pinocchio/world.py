@@ -324,8 +324,8 @@ class CollisionWorld:
         if not bodies:
             return {}
         others = bodies + others  # a pair of two moving links counts once (i < j)
-        blo, bhi = self._boxes([b[1] for b in bodies], [b[2] for b in bodies])
         olo, ohi = self._boxes([o[1] for o in others], [o[2] for o in others])
+        blo, bhi = olo[:len(bodies)], ohi[:len(bodies)]  # the moving bodies come first
         apart = np.maximum(np.maximum(blo[:, None] - ohi[None], olo[None] - bhi[:, None]), 0.0)
         gap = np.linalg.norm(apart, axis=2)  # a lower bound on the distance: world AABBs apart
         pairs = self._self_pairs()

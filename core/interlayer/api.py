@@ -12,7 +12,7 @@ from .errors import UserError
 from .faults import ComponentFailed, Guarded, PluginFault, blame, blamed
 from .loop import InterfaceLayer, Interrupted, LoopSettings
 from .plugins import PluginHost
-from .refine import EpochState
+from .refine import EpochState, drawn_within
 from .result import Result
 from .trace import Stats, Trace
 
@@ -140,14 +140,7 @@ def _generator(comp):
     depends only on its arguments), its faults attributed."""
 
     def candidates(problem, step, world, rng):
-        with blame(comp.plugin, comp.label):
-            items = iter(comp.factory(problem, step, world, rng))
-        while True:
-            with blame(comp.plugin, comp.label):
-                cand = next(items, None)
-            if cand is None:
-                return
-            yield cand
+        yield from drawn_within(lambda: comp.factory(problem, step, world, rng), lambda: blame(comp.plugin, comp.label))
 
     candidates.labels = {}
     return candidates

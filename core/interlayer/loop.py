@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from . import logic
 from .abstraction import TaskModel
 from .domain import GroundStep
-from .refine import EpochState, Infeasible, PoseGenerator, Refiner, stable_seed
+from .refine import EpochState, Infeasible, PoseGenerator, Refiner, drawn_within, stable_seed
 from .result import Result
 from .trace import Stats, Trace
 from .watchdog import NoProgress, ProgressWatch
@@ -98,14 +98,9 @@ class InterfaceLayer:
         problem = self.model.problem
 
         def candidates(rng):  # drawn one at a time: TryRefine often needs only the first few
-            with self.stats.timer("pose_generation"):
-                items = iter(factory(problem, step, world, rng))
             n = 0
-            while True:
-                with self.stats.timer("pose_generation"):
-                    cand = next(items, None)
-                if cand is None:
-                    break
+            for cand in drawn_within(lambda: factory(problem, step, world, rng),
+                                     lambda: self.stats.timer("pose_generation")):
                 n += 1
                 yield cand
             if not n:

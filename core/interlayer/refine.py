@@ -131,6 +131,19 @@ def fingerprint(candidate: Candidate):
     return freeze(candidate.waypoints), freeze(candidate.values), candidate.label
 
 
+def drawn_within(make_items, context):
+    """The items of ``make_items()`` drawn one at a time, each computed inside a fresh ``context()``
+    (a timer, a fault attribution); a ``None`` item ends them."""
+    with context():
+        items = iter(make_items())
+    while True:
+        with context():
+            item = next(items, None)
+        if item is None:
+            return
+        yield item
+
+
 def stable_seed(*parts) -> list[int]:
     return [zlib.crc32(str(p).encode()) for p in parts]
 
