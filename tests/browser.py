@@ -48,7 +48,7 @@ def chromium_path() -> str | None:
     return None
 
 
-def screenshot(html_path, png_path, size=(800, 600), budget_ms: int = 3000, *, timeout: float = 60.0,
+def screenshot(html_path, png_path, size=(800, 600), budget_ms: int = 3000, *, timeout: float = 240.0,
                net_log=None, extra_args=()) -> Path:
     """Render ``html_path`` (a local file, or an http(s) URL) with headless Chromium into
     ``png_path``. ``budget_ms`` is Chromium's virtual-time budget (animations
@@ -88,7 +88,7 @@ def _run(exe_args, timeout):
         raise RuntimeError(f"chromium timed out after {timeout}s") from exc
 
 
-def dump_dom(html_path, budget_ms: int = 2000, *, size=(800, 600), timeout: float = 60.0) -> str:
+def dump_dom(html_path, budget_ms: int = 2000, *, size=(800, 600), timeout: float = 240.0) -> str:
     """The page's serialized DOM after ``budget_ms`` of virtual time."""
     exe = chromium_path()
     if exe is None:
