@@ -414,6 +414,28 @@ def test_the_refinement_cache_keys_on_the_candidate_not_its_index(host):
     assert partial and partial[0] == ("c1", True)
 
 
+def test_a_refinement_completed_in_the_partial_pass_is_taken(host):
+    """The partial pass may be offered candidates the error-free pass was not (epoch state changed in
+    between); when they refine every step, that is a solution: no replan, no reset."""
+    from interlayer.refine import EpochState
+
+    class Reordering(EpochState):
+        calls = 0
+
+        def __call__(self, problem, step, world, rng):
+            self.calls += 1
+            yield Candidate(("c0",), {}, "c0") if self.calls == 1 else Candidate(("c1",), {}, "c1")
+
+    def script(item, label, world, n):
+        return Failure("obstruction", ("z",)) if label == "c0" else None
+
+    result, _ = run(script, gen=Reordering, host=host, time_limit=10.0)
+    assert result.status == "solved", result.reason
+    assert result.task_planner_calls == 1 and not events(result, "reset")
+    assert [(e["mode"], e["candidate"], e["ok"]) for e in events(result, "attempt")] == [
+        ("error-free", "c0", False), ("partial", "c1", True)]
+
+
 MOVABLE = DomainSpec(
     name="scripted-shift",
     types={"item": None},

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from . import logic
 from .abstraction import TaskModel
 from .domain import GroundStep
-from .refine import EpochState, Infeasible, PoseGenerator, Refiner, drawn_within, stable_seed
+from .refine import EpochState, Infeasible, PoseGenerator, Refinement, Refiner, drawn_within, stable_seed
 from .result import Result
 from .trace import Stats, Trace
 from .watchdog import NoProgress, ProgressWatch
@@ -160,6 +160,17 @@ class InterfaceLayer:
         self.stats.count("plan_length", len(self.plan))
         return outcomes
 
+    def _solved(self, init, world0, done):
+        self.trace.emit("refined", steps=len(self.plan))
+        outcomes = [done.outcomes[i] for i in range(len(self.plan))]
+        if self.settings.shortcut:
+            outcomes = self._shortcut(init, world0, outcomes)
+        with self.stats.timer("validation"):  # the plan returned, shortcut or not
+            why = self.task_planner.validate_plan(self.model, init, self.plan)
+        if why:
+            raise RuntimeError(f"the final task plan failed validation: {why}")
+        return "solved", "", outcomes
+
     # -- Alg. 1 -----------------------------------------------------------------------------
     def solve(self) -> Result:
         t0 = time.perf_counter()
@@ -203,20 +214,16 @@ class InterfaceLayer:
             self.trace.emit("refine", mode="error-free", from_step=step, plan=plan_json(self.plan), epoch=self.epoch)
             done = _drain(refiner.try_refine(self.plan, step, world, prefix, partial=False))  # line 5
             if done is not None:
-                self.trace.emit("refined", steps=len(self.plan))
-                outcomes = [done.outcomes[i] for i in range(len(self.plan))]
-                if self.settings.shortcut:
-                    outcomes = self._shortcut(init, world0, outcomes)
-                with self.stats.timer("validation"):  # the plan returned, shortcut or not
-                    why = self.task_planner.validate_plan(self.model, init, self.plan)
-                if why:
-                    raise RuntimeError(f"the final task plan failed validation: {why}")
-                return "solved", "", outcomes  # line 6
+                return self._solved(init, world0, done)  # line 6
             if self._out_of_time():
                 break
             self.trace.emit("refine", mode="partial", from_step=step, plan=plan_json(self.plan), epoch=self.epoch)
             traj_count, new_plan = 0, None
-            for partial in refiner.try_refine(self.plan, step, world, prefix, partial=True):  # lines 7-8
+            for partial in _with_result(refiner.try_refine(self.plan, step, world, prefix, partial=True)):  # lines 7-8
+                if isinstance(partial, Refinement):
+                    # a generator with epoch state may offer other candidates than in the error-free pass
+                    # (e.g. put-downs kept off an approach ranked since): one of them refined every step
+                    return self._solved(init, world0, partial)
                 f = partial.fail_step
                 facts = self.translate(partial.failure, self.plan[f])
                 if not facts:
@@ -261,6 +268,13 @@ class InterfaceLayer:
                 self.watch.reset(traj_count, self.plan)
             self.watch.check_trace(len(self.trace.events))
         return "timeout", f"the time limit of {self.settings.time_limit:g} s was reached before a refinement was found", None
+
+
+def _with_result(gen):
+    """The items of a TryRefine generator, then its return value if that is a Refinement."""
+    value = yield from gen
+    if isinstance(value, Refinement):
+        yield value
 
 
 def _drain(gen):

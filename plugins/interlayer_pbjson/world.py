@@ -168,6 +168,12 @@ class PBGeometry(PR2Geometry):
                 len(candidate.waypoints) == 3 and
                 self.base_space.distance(np.asarray(world.base, float), np.asarray(candidate.waypoints[0], float)) > 1e-9)
             segs = []
+            if drives and step.action == "pick" and len(candidate.waypoints) == 3:
+                # the approach check first, with the arms as the tuck leaves them: it is cheap, and a
+                # blocked approach fails the step whatever the tuck's motion
+                failed = self.approach_blocked(step, self.tucked(world), candidate, acc)
+                if failed is not None:
+                    return failed
             if drives:
                 world, failed = self._tuck(world, motion, segs, acc)
                 if failed is not None:
@@ -183,6 +189,13 @@ class PBGeometry(PR2Geometry):
             return out
         finally:
             self.stats.add_time("collision_checking", acc[0])
+
+    @staticmethod
+    def tucked(world):
+        """``world`` with every empty arm tucked (where :meth:`_tuck` moves them)."""
+        from interlayer_pinocchio import TUCKED_ARMS
+
+        return replace(world, arms={a: v if a in world.held else tuple(TUCKED_ARMS[a]) for a, v in world.arms.items()})
 
     def _tuck(self, world, motion, segs, acc):
         """Tuck every empty arm that is not (the start configuration may hold them out)."""

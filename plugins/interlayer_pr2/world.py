@@ -330,11 +330,9 @@ class PR2Geometry:
         inner = type(cand)(tuple(cand.waypoints[1:]), cand.values, cand.label)
         w = replace(world, base=base)
         if step.action == "pick":  # a blocked approach fails the step whatever the motions: check it first (cheap)
-            blockers = self._movables_on_line(w.with_gripper(step.args[1], "open"), step.args[1], inner.waypoints[0], acc)
-            blockers.discard(step.args[0])
-            if blockers:
-                return StepOutcome(False, failure=Failure("obstruction", tuple(sorted(blockers)),
-                                                          "pick approach: blocked by " + ", ".join(sorted(blockers))))
+            blocked = self.approach_blocked(step, world, cand, acc)
+            if blocked:
+                return blocked
         segs = []
         _, failed = self.drive(world, base, f"{step.action} drive", segs, motion, acc,
                                step.args[0] if step.action == "pick" else None)
@@ -349,6 +347,17 @@ class PR2Geometry:
         elif out.failure is not None and out.failure.kind == "obstruction" and "transit" in out.failure.detail:
             out = self._fewer_blockers(step, w, inner, out, acc)
         return out
+
+    def approach_blocked(self, step, world, cand, acc) -> StepOutcome | None:
+        """A folded pick's approach, from the candidate's base, checked against the movable objects:
+        the failure naming the objects in the way, or None."""
+        arm = step.args[1]
+        w = replace(world, base=tuple(float(v) for v in cand.waypoints[0])).with_gripper(arm, "open")
+        blockers = self._movables_on_line(w, arm, cand.waypoints[1], acc) - {step.args[0]}
+        if not blockers:
+            return None
+        return StepOutcome(False, failure=Failure("obstruction", tuple(sorted(blockers)),
+                                                  "pick approach: blocked by " + ", ".join(sorted(blockers))))
 
     def drive(self, world, base, label, segs, motion, acc, exclude=None):
         """The base driven to ``base`` (an SE(2) path planned around everything; no segment if it is
