@@ -181,7 +181,7 @@ class ClutterSampler(EpochState):
         geometry.sync(world)
         target = geometry.layout.target
         corridors = self.corridors_for(world, obj, target)
-        for x, y, z in _table_spots(geometry, world, obj, rng, tries):
+        for x, y, z in _table_spots(geometry, world, obj, rng, tries, corridors=corridors):
             spots.append((self.spot_score(geometry, world, target, x, y, corridors), x, y, z))
         spots.sort(key=lambda s: -s[0])
         found = []
@@ -254,11 +254,12 @@ def _with_hover(geometry, world, arm, T, wps, rng, obj):
 CORRIDOR = 0.15  # m: put-down spots keep this far from the footprint of the target's best approaches
 
 
-def _table_spots(geometry, world, obj, rng, tries, want=12):
+def _table_spots(geometry, world, obj, rng, tries, want=12, corridors=()):
     """Upright resting poses of obj anywhere on the table, clear of fixed obstacles and >= 6 cm
     (edge to edge) from every other object. With 40 objects on the table such spots are rare: many
-    points are drawn at once (vectorized), and when fewer than ``want`` pass, the clearance shrinks
-    (4, then 2.5 cm) for the remaining ones."""
+    points are drawn at once (vectorized), and when fewer than ``want`` pass outside ``corridors``
+    (the free space is often where an object was just picked from, in an approach), the clearance
+    shrinks (4, then 2.5 cm) for the remaining ones."""
     o = geometry.specs[obj]
     xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
     m = o.size[0] + 0.02
@@ -276,7 +277,7 @@ def _table_spots(geometry, world, obj, rng, tries, want=12):
                 hits = geometry.cw.objects_overlap(obj, pose4(float(x), float(y), z, 0.0))
             if hits & geometry.fixed:
                 continue
-            out += 1
+            out += not _in_corridors(x, y, corridors)
             yield float(x), float(y), z
         if out >= want:
             return
