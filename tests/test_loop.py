@@ -436,6 +436,44 @@ def test_a_refinement_completed_in_the_partial_pass_is_taken(host):
         ("error-free", "c0", False), ("partial", "c1", True)]
 
 
+class MovingGeometry(ScriptedGeometry):
+    """World = the items taken, and taking an item is what moves it."""
+
+    def moved(self, before, after):
+        return set(before ^ after)
+
+
+def first_pass(result):
+    """(step, ok) of the attempts of the first error-free TryRefine call."""
+    out = []
+    for e in result.trace.events:
+        if e["type"] == "refine" and e["mode"] == "partial":
+            return out
+        if e["type"] == "attempt":
+            out.append((e["step"], e["ok"]))
+    return out
+
+
+@pytest.mark.parametrize("blocker, backtracks", [("z", False), ("taken", True)])
+def test_error_free_refinement_backtracks_only_into_steps_that_moved_a_blocker(host, blocker, backtracks):
+    """The second item taken is always obstructed: by z, which no step moves (re-taking the first item
+    another way cannot help: the pass ends and the partial pass learns), or by the first item, which
+    the first step moved (backtrack into it, as Alg. 2 does)."""
+    def script(item, label, world, n):
+        if len(world) == 1:
+            return Failure("obstruction", ("z",) if blocker == "z" else tuple(world))
+        return None
+
+    problem = Problem(SPEC, {i: "item" for i in "abz"}, frozenset(("Takeable", t) for t in "ab"), "(and (Done a) (Done b))",
+                      MovingGeometry(script), {})
+    task = host["task_planners"].get("fast-downward").factory({})
+    translators = [("templates", host["failure_translators"].get("templates").factory)]
+    layer = InterfaceLayer(abstract(problem), task, None, {"take": generator()}, translators, LoopSettings(time_limit=5.0))
+    attempts = first_pass(layer.solve())
+    assert attempts[:3] == [(0, True), (1, False), (1, False)]
+    assert (attempts[3:4] == [(0, True)]) == backtracks
+
+
 MOVABLE = DomainSpec(
     name="scripted-shift",
     types={"item": None},

@@ -60,9 +60,11 @@ class Geometry(Protocol):
     """The domain's refinement runtime (``Problem.geometry``). Optional methods:
     ``trajectory_json(plan, outcomes) -> dict`` (written to ``trajectory.json``: ``{"initial":
     snapshot, "steps": [{"action", "args", "segments"}, ...]}``, one entry per plan step) and
-    ``validate(plan, trajectory) -> list of violations`` (used by ``interlayer validate``). A geometry
-    with a ``cartesian`` attribute gets the motion planner named by ``planner.cartesian`` there, for
-    its straight-line end-effector segments."""
+    ``validate(plan, trajectory) -> list of violations`` (used by ``interlayer validate``) and
+    ``moved(before, after) -> set of object names`` (the objects whose pose differs between two
+    worlds: TryRefine then skips backtracking that cannot move an obstruction, see ``Refiner``). A
+    geometry with a ``cartesian`` attribute gets the motion planner named by ``planner.cartesian``
+    there, for its straight-line end-effector segments."""
 
     def initial_world(self) -> Any:
         """The low-level state at the start: any value; worlds are never mutated, only replaced."""
@@ -170,7 +172,13 @@ class Refiner:
 
     ``max_attempts`` bounds the *failed* motion-planning attempts per plan step in one TryRefine
     call (successes and cached outcomes are free), so the budget scales with the plan's length and
-    a plan whose every step refines is never cut off; the loop raises it at every epoch."""
+    a plan whose every step refines is never cut off; the loop raises it at every epoch.
+
+    Backjumping (error-free mode, geometries with ``moved``): when every candidate of a step failed
+    on obstructions by objects that no step of this call has moved, other instantiations of the
+    earlier steps leave those objects where they are, so the call ends there instead of
+    re-refining them; the partial pass that follows learns the obstructions. Partial mode keeps
+    the paper's full backtracking."""
 
     def __init__(self, geometry, motion, make_generator, max_attempts: int, out_of_time, on_attempt=None, stats=None):
         from .trace import Stats
@@ -186,6 +194,12 @@ class Refiner:
     def clear_cache(self):
         self._cache.clear()
 
+    def _futile(self, blocked, start, world) -> bool:
+        """Backtracking cannot help: the exhausted step's failures were all obstructions (``blocked``
+        names the objects) and no step since ``start`` moved any of them."""
+        moved = getattr(self.geometry, "moved", None)
+        return bool(blocked) and moved is not None and not (blocked & moved(start, world))
+
     def try_refine(self, plan: list[GroundStep], step: int, world0, prefix: dict, partial: bool):
         """Alg. 2. A generator: yields PartialRefinement in partial mode; its return value
         (StopIteration.value) is a Refinement, or None when the search failed or ran out."""
@@ -194,12 +208,15 @@ class Refiner:
         chain: list = []  # what was refined at each step from `step`: with world0, what step i's world depends on
         gens = {step: self.make_generator(step, plan[step], world0)} if step < n else {}
         i, failures = step, {}
+        blockers: dict = {}  # step -> the objects its failures named since its generator was made (see _obstructions)
         while step <= i < n:  # line 4
             if self.out_of_time():
                 return None
             gen = gens[i]
             cand = gen.get_next()
             if cand is None:  # lines 7-10: generator exhausted, backtrack
+                if not partial and self._futile(blockers.get(i), worlds[step], worlds[i]):
+                    return None
                 del gens[i]
                 i -= 1
                 if chain:
@@ -226,7 +243,10 @@ class Refiner:
                 i += 1
                 if i < n:
                     gens[i] = self.make_generator(i, plan[i], worlds[i])
-            elif partial and outcome.failure is not None:  # lines 13-14
+                    blockers.pop(i, None)
+            else:
+                blockers[i] = _obstructions(outcome.failure, blockers.get(i, set()))
+            if partial and not outcome.ok and outcome.failure is not None:  # lines 13-14
                 prefix_out = {k: v for k, v in outcomes.items() if k < i}
                 yield PartialRefinement(prefix_out, worlds[i], i, outcome.failure, cand)
             if not outcome.ok and outcome.failure is not None and outcome.failure.static:
@@ -235,3 +255,11 @@ class Refiner:
         if i >= n:  # lines 16-17
             return Refinement(outcomes)
         return None
+
+
+def _obstructions(failure, so_far):
+    """``so_far`` and the objects ``failure`` names; None once a failure was not an obstruction by
+    named objects (then any earlier step may be the cause)."""
+    if so_far is None or failure is None or failure.kind != "obstruction" or not failure.objects:
+        return None
+    return so_far | set(failure.objects)

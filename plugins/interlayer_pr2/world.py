@@ -168,6 +168,14 @@ class PR2Geometry:
     def snapshot(self, world: World) -> dict:
         return world.to_json()
 
+    def moved(self, before: World, after: World) -> set:
+        """Objects whose pose differs between two worlds (picked up or put down in between), and
+        articulated bodies whose joints do."""
+        out = set()
+        for a, b in ((before.objects, after.objects), (before.joints, after.joints)):
+            out |= {o for o in a.keys() | b.keys() if o not in a or o not in b or not np.array_equal(a[o], b[o])}
+        return out
+
     def config(self, world: World) -> np.ndarray:
         r = self.robot
         q = r.default_q(world.base)
