@@ -149,3 +149,56 @@ def test_put_downs_keep_clear_of_the_approaches_ranked_in_the_epoch(host):
     best = spots()[0]
     sampler.corridors[(other, "left")] = (_pose_key(world.objects[other]), [[best]])  # an approach over that spot
     assert all(np.hypot(x - best[0], y - best[1]) >= CORRIDOR for x, y in spots())
+
+
+def test_when_the_roomy_spots_lie_on_known_approaches_tighter_ones_are_offered():
+    """The free space is often where a blocker was just picked from, in an approach: the spot search
+    then also offers spots with less clearance, elsewhere, instead of only those on the approach."""
+    import numpy as np
+    from interlayer_clutter.samplers import _table_spots
+
+    problem = _problem(["problem.objects=15", "planner.seed=0"])
+    geometry, world = problem.geometry, problem.geometry.initial_world()
+    obj = geometry.layout.objects[0].name
+    xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
+    roomy = list(_table_spots(geometry, world, obj, np.random.default_rng(0), 20))
+    everywhere = [(1.0, np.array([(x, y) for x in np.linspace(xmin, xmax, 40) for y in np.linspace(ymin, ymax, 40)]))]
+    offered = list(_table_spots(geometry, world, obj, np.random.default_rng(0), 20, corridors=everywhere))
+    assert offered[:len(roomy)] == roomy and len(offered) > len(roomy)
+
+
+def test_moved_names_the_objects_a_step_picked_or_put_down():
+    """What backjumping in TryRefine asks the PR2 geometry (refine.Refiner)."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    problem = _problem(["problem.objects=15", "planner.seed=0"])
+    world = problem.geometry.initial_world()
+    a, b = list(world.objects)[:2]
+    picked = replace(world, objects={k: v for k, v in world.objects.items() if k != a})
+    moved = replace(picked, objects={**picked.objects, b: world.objects[b] + 0.01})
+    assert problem.geometry.moved(world, world) == set()
+    assert problem.geometry.moved(world, picked) == {a}
+    assert problem.geometry.moved(world, moved) == {a, b}
+
+
+R040 = ROOT.parent / "shared" / "benchmarks" / "pybullet-planning-json" / "srivastava_table_r040.json"
+
+
+@pytest.mark.skipif(not R040.is_file(), reason=f"{R040} (beside the checkout) is absent")
+def test_a_blocked_pick_in_the_papers_scene_fails_before_any_motion_is_planned():
+    """srivastava_table_r040.json starts with the arms out, so a pick's drive begins with a tuck motion
+    plan; a blocked approach fails the step whatever that motion, so it is checked first (the motion
+    planner here is None: planning anything would raise)."""
+    from interlayer.domain import GroundStep
+    from interlayer.plugins import PluginHost
+    from interlayer_clutter.samplers import ClutterSampler
+
+    problem = api.build_problem(PluginHost(), api.resolve_config(str(R040), []))
+    geometry, world = problem.geometry, problem.geometry.initial_world()
+    t = geometry.layout.target
+    step = GroundStep("pick", (t, "left", "right", f"bpfg_{t}_left", f"gpfg_{t}_left", f"gpfg_{t}_right"))
+    cand = next(iter(ClutterSampler([0])(problem, step, world, None)))
+    out = geometry.refine_step(step, world, cand, None)
+    assert not out.ok and out.failure.kind == "obstruction" and out.failure.detail.startswith("pick approach")
