@@ -202,3 +202,20 @@ def test_a_blocked_pick_in_the_papers_scene_fails_before_any_motion_is_planned()
     cand = next(iter(ClutterSampler([0])(problem, step, world, None)))
     out = geometry.refine_step(step, world, cand, None)
     assert not out.ok and out.failure.kind == "obstruction" and out.failure.detail.startswith("pick approach")
+
+
+def test_equally_clear_grasps_come_nearest_to_the_robot_first():
+    """Among pick candidates with as many objects in the way, the shortest drive comes first."""
+    import math
+    from dataclasses import replace
+
+    from interlayer_clutter.samplers import ClutterSampler
+    from interlayer_pr2.world import wrap
+
+    problem = _problem(["problem.objects=15", "planner.seed=0"])
+    world = problem.geometry.initial_world()
+    sampler = ClutterSampler([0])
+    for base in ((0.3, 0.0, 0.0), (2.4, 0.0, math.pi)):
+        ranked = sampler.ranked_grasps(problem, replace(world, base=base), problem.geometry.layout.target, "left")
+        clear = [math.dist(f[2][:2], base[:2]) + 0.3 * abs(wrap(f[2][2] - base[2])) for f in ranked if f[0] == ranked[0][0]]
+        assert len(clear) >= 3 and clear == sorted(clear)

@@ -8,13 +8,11 @@ import numpy as np
 from interlayer.refine import Candidate, EpochState
 from interlayer_pr2.generators import _base_free
 from interlayer_pr2.scene import REST_GAP, base_limits, table_top
-from interlayer_pr2.world import ARMS, pose4
+from interlayer_pr2.world import ARMS, pose4, wrap
 
 
 def _base_near(geometry, x, y, rng, reach=(0.55, 0.95)):
     """A base pose facing (x, y) from outside the table, sampled around the table's sides."""
-    from interlayer_pr2.generators import wrap
-
     xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
     (lx, hx), (ly, hy) = base_limits(geometry.layout)
     for _ in range(20):
@@ -124,11 +122,12 @@ class ClutterSampler(EpochState):
         return found
 
     def ranked_grasps(self, problem, world, obj, arm):
-        """The candidates ranked in ``world``: ((approach hits, transit-line hits), index, base, kind,
-        T, waypoints, footprint), fewest objects in the way first."""
+        """The candidates ranked in ``world``: ((approach hits, transit-line hits), drive, base, kind,
+        T, waypoints, footprint), fewest objects in the way first, then the shortest drive from the
+        robot's base (a short drive is planned quicker, often as a straight line)."""
         geometry = problem.geometry
         out = []
-        for idx, (base, kind, T, wps, xy) in enumerate(self.grasp_candidates(problem, world, obj, arm)):
+        for base, kind, T, wps, xy in self.grasp_candidates(problem, world, obj, arm):
             if not _base_free(geometry, world, base):
                 continue
             w = replace(world, base=base)
@@ -138,7 +137,8 @@ class ClutterSampler(EpochState):
                 hit |= _movables_on(geometry, w, arm, list(wps[1]), (obj,))
                 # a rough guess at the transit's sweep: the straight joint-space line to the pre-grasp
                 sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], wps[0][0]), (obj,), gripper=None)
-            out.append(((len(hit), len(sweep)), idx, base, kind, T, wps, xy))
+            drive = math.hypot(base[0] - world.base[0], base[1] - world.base[1]) + 0.3 * abs(wrap(base[2] - world.base[2]))
+            out.append(((len(hit), len(sweep)), drive, base, kind, T, wps, xy))
         out.sort(key=lambda f: (f[0], f[1]))
         return out
 
