@@ -219,3 +219,29 @@ def test_equally_clear_grasps_come_nearest_to_the_robot_first():
         ranked = sampler.ranked_grasps(problem, replace(world, base=base), problem.geometry.layout.target, "left")
         clear = [math.dist(f[2][:2], base[:2]) + 0.3 * abs(wrap(f[2][2] - base[2])) for f in ranked if f[0] == ranked[0][0]]
         assert len(clear) >= 3 and clear == sorted(clear)
+
+
+def test_the_sampler_answers_a_repeated_question_from_memory(host):
+    """The partial pass asks the generators what the error-free pass asked (same world, same random
+    stream): the ranking of grasps and the put-down search are not computed twice."""
+    from dataclasses import replace
+
+    import numpy as np
+    from interlayer.domain import GroundStep
+    from interlayer_clutter.samplers import ClutterSampler
+
+    problem = _problem(["problem.objects=15", "planner.seed=0"])
+    sampler = ClutterSampler([0])
+    world = problem.geometry.initial_world()
+    target = problem.geometry.layout.target
+    ranked = sampler.ranked_grasps(problem, world, target, "left")
+    assert sampler.ranked_grasps(problem, world, target, "left") is ranked
+    assert sampler.ranked_grasps(problem, replace(world), target, "left") is not ranked  # another world
+    held = _holding(problem, world, sampler, target, "left")
+    place = GroundStep("place", (target, "left", "s1", "bp", "pd"))
+    first = [c.label for c in sampler(problem, place, held, np.random.default_rng(5))]
+    computed = sampler.putdown_candidates
+    sampler.putdown_candidates = None  # asking again must not search again
+    assert first and [c.label for c in sampler(problem, place, held, np.random.default_rng(5))] == first
+    sampler.putdown_candidates = computed
+    assert [c.label for c in sampler(problem, place, held, np.random.default_rng(6))] != first

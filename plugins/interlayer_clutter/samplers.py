@@ -53,6 +53,10 @@ class ClutterSampler(EpochState):
         self.grasps: dict = {}  # (obj, arm, pose) -> candidates
         self.misses: dict = {}  # (obj, arm, pose) -> fruitless searches so far
         self.corridors: dict = {}  # (obj, arm) -> (obj pose key, footprints of its best grasps there)
+        # answers already given (the partial pass repeats the error-free pass's questions), keyed by the
+        # world's id and holding the world itself (so that the id is not reused while the entry lives)
+        self.rankings: dict = {}  # (obj, arm, id(world)) -> (world, ranked grasps)
+        self.putdowns: dict = {}  # (obj, arm, id(world), random state, corridors) -> (world, put-down candidates)
 
     def __call__(self, problem, step, world, rng):
         return self.pick(problem, step, world, rng) if step.action == "pick" else self.place(problem, step, world, rng)
@@ -125,6 +129,9 @@ class ClutterSampler(EpochState):
         """The candidates ranked in ``world``: ((approach hits, transit-line hits), drive, base, kind,
         T, waypoints, footprint), fewest objects in the way first, then the shortest drive from the
         robot's base (a short drive is planned quicker, often as a straight line)."""
+        key = (obj, arm, id(world))
+        if self.rankings.get(key, (None,))[0] is world:  # worlds are never mutated, only replaced
+            return self.rankings[key][1]
         geometry = problem.geometry
         out = []
         for base, kind, T, wps, xy in self.grasp_candidates(problem, world, obj, arm):
@@ -140,6 +147,8 @@ class ClutterSampler(EpochState):
             drive = math.hypot(base[0] - world.base[0], base[1] - world.base[1]) + 0.3 * abs(wrap(base[2] - world.base[2]))
             out.append(((len(hit), len(sweep)), drive, base, kind, T, wps, xy))
         out.sort(key=lambda f: (f[0], f[1]))
+        if out:  # none found: the next call searches with other samples (see grasp_candidates)
+            self.rankings[key] = (world, out)
         return out
 
     def spot_score(self, geometry, world, target, x, y, corridors=()):
@@ -166,21 +175,35 @@ class ClutterSampler(EpochState):
                 out.append((weight, np.asarray(xy, float)))
         return out
 
-    def place(self, problem, step, world, rng, limit: int = 4, tries: int = 80):
+    def place(self, problem, step, world, rng, limit: int = 4):
         """A free table spot (far from the target and other objects first), a base pose to reach it, and
         the lowering / retreat arm paths."""
-        from interlayer_pr2.generators import LIFT, PRE_GRASP, _line, _putdown, trans
-
         obj, arm = step.args[0], step.args[1]
         bp_ref, pd_ref = step.args[3], step.args[4]
-        geometry = problem.geometry
         if world.holder(obj) != arm:
             return
+        corridors = self.corridors_for(world, obj, problem.geometry.layout.target)
+        # the same question (world, random stream, approaches to keep clear) gets the same answer: the
+        # partial pass asks again what the error-free pass asked
+        key = (obj, arm, id(world), repr(rng.bit_generator.state), tuple((w, xy.tobytes()) for w, xy in corridors))
+        if self.putdowns.get(key, (None,))[0] is not world:
+            self.putdowns[key] = (world, self.putdown_candidates(problem, obj, arm, world, rng, corridors, limit))
+        for (hits, blocks, sweep), _, base, x, y, P, T, lower, back in self.putdowns[key][1]:
+            on = ", on a known approach" if blocks else ""
+            yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])),
+                            {bp_ref: list(base), pd_ref: T.tolist(), "tloc": (obj, P), "object_pose": P.tolist()},
+                            f"{obj} at {_fmt((x, y))} from base {_fmt(base)} ({hits} + {sweep} objects in the way{on})")
+
+    def putdown_candidates(self, problem, obj, arm, world, rng, corridors, limit, tries: int = 80):
+        """The ``limit`` best (ordering key, rank, base, x, y, object pose, tool pose, lowering, retreat)
+        for putting down obj held in arm."""
+        from interlayer_pr2.generators import LIFT, PRE_GRASP, _line, _putdown, trans
+
+        geometry = problem.geometry
         G = world.held[arm][1]
         spots = []
         geometry.sync(world)
         target = geometry.layout.target
-        corridors = self.corridors_for(world, obj, target)
         for x, y, z in _table_spots(geometry, world, obj, rng, tries, corridors=corridors):
             spots.append((self.spot_score(geometry, world, target, x, y, corridors), x, y, z))
         spots.sort(key=lambda s: -s[0])
@@ -216,11 +239,7 @@ class ClutterSampler(EpochState):
             if (len(found) >= limit and good) or (len(good) >= 2 and good[-1][0] == (0, 0, 0)):
                 break
         found.sort(key=lambda f: (f[0], f[1]))
-        for (hits, blocks, sweep), _, base, x, y, P, T, lower, back in found[:limit]:
-            on = ", on a known approach" if blocks else ""
-            yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])),
-                            {bp_ref: list(base), pd_ref: T.tolist(), "tloc": (obj, P), "object_pose": P.tolist()},
-                            f"{obj} at {_fmt((x, y))} from base {_fmt(base)} ({hits} + {sweep} objects in the way{on})")
+        return found[:limit]
 
 
 def _reach_xy(base, T, step=0.05):
