@@ -168,7 +168,7 @@ class PBGeometry(PR2Geometry):
                 len(candidate.waypoints) == 3 and
                 self.base_space.distance(np.asarray(world.base, float), np.asarray(candidate.waypoints[0], float)) > 1e-9)
             segs = []
-            if drives and step.action == "pick" and len(candidate.waypoints) == 3:
+            if drives and step.action == "pick":
                 # the approach check first, with the arms as the tuck leaves them: it is cheap, and a
                 # blocked approach fails the step whatever the tuck's motion
                 failed = self.approach_blocked(step, self.tucked(world), candidate, acc)

@@ -339,7 +339,7 @@ class PR2Geometry:
         w = replace(world, base=base)
         if step.action == "pick":  # a blocked approach fails the step whatever the motions: check it first (cheap)
             blocked = self.approach_blocked(step, world, cand, acc)
-            if blocked:
+            if blocked is not None:
                 return blocked
         segs = []
         _, failed = self.drive(world, base, f"{step.action} drive", segs, motion, acc,
