@@ -468,7 +468,7 @@ def test_error_free_refinement_backtracks_only_into_steps_that_moved_a_blocker(h
                       MovingGeometry(script), {})
     task = host["task_planners"].get("fast-downward").factory({})
     translators = [("templates", host["failure_translators"].get("templates").factory)]
-    layer = InterfaceLayer(abstract(problem), task, None, {"take": generator()}, translators, LoopSettings(time_limit=5.0))
+    layer = InterfaceLayer(abstract(problem), task, None, {"take": generator()}, translators, LoopSettings(time_limit=2.0))
     attempts = first_pass(layer.solve())
     assert attempts[:3] == [(0, True), (1, False), (1, False)]
     assert (attempts[3:4] == [(0, True)]) == backtracks
