@@ -258,3 +258,35 @@ def test_papers_scene_as_shipped_is_unsolvable_by_gripper_width(tmp_path):
     assert time.perf_counter() - t0 < 30
     api.write_outputs(result, tmp_path)
     assert "problem" in (tmp_path / "config.toml").read_text()  # rebuildable: problem.file is recorded
+
+
+def wall_scene():
+    """Box a (0.10 deep, 0.03 across, 0.16 tall) stands 7 cm beside a fixed wall taller than itself:
+    the only grasps close across its 3 cm, one finger between it and the wall; the fully opened fingers
+    (and with the planner's padding, fingers opened 4.6 cm) do not fit there, fingers opened 4 cm do."""
+    data = scene(goal_holding="a")
+    data["bodies"][3] = _body("a", (1.05, 0.0, 0.751), [_box((0.05, 0.015, 0.08), (0, 0, 0.08), color=(0, 0, 1))])
+    data["bodies"].append(_body("wall", (1.2, 0.105, 0.751), [_box((0.3, 0.02, 0.1), (0, 0, 0.1))]))
+    data["task"]["object_names"] = ["a"]
+    del data["bodies"][4]
+    return data
+
+
+def test_a_grasp_beside_a_wall_opens_the_gripper_only_as_wide_as_it_needs(tmp_path):
+    path = tmp_path / "wall.json"
+    path.write_text(json.dumps(wall_scene()))
+    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=120"])
+    assert result.status == "solved", result.reason
+    out = tmp_path / "out"
+    api.write_outputs(result, out)
+    assert api.validate(out) == []
+    trajectory = json.loads((out / "trajectory.json").read_text())
+    opens = [s for step in trajectory["steps"] for s in step["segments"] if s["kind"] == "gripper" and s["command"] == "open"]
+    assert opens and all(0.03 < s["width"] < 0.05 for s in opens), opens
+
+    # the same trajectory with the gripper opened fully before the grasp: the validator finds the fingers in the wall
+    for s in opens:
+        del s["width"]
+    (out / "trajectory.json").write_text(json.dumps(trajectory))
+    errors = api.validate(out)
+    assert errors and "finger" in errors[0] and "-wall" in errors[0], errors

@@ -109,7 +109,7 @@ class ClutterSampler(EpochState):
                 continue
             w = replace(w0, base=base)
             for kind, T in grasp_poses(geometry, obj, P, _bearing(base, x, y), kinds, rng, n_side=2):
-                wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,))
+                wps = _waypoints(geometry, w, arm, T, kind, rng, obj)
                 if wps is None:
                     continue
                 wps = _with_hover(geometry, w, arm, T, wps, rng, obj)
@@ -134,8 +134,9 @@ class ClutterSampler(EpochState):
             w = replace(world, base=base)
             with geometry.stats.timer("collision_checking"):
                 # exactly the refinement's first check: the approach (hover descent included), densified
-                hit = geometry._movables_on_line(w.with_gripper(arm, "open"), arm, wps[0], [0.0]) - {obj}
-                hit |= _movables_on(geometry, w, arm, list(wps[1]), (obj,))
+                opened = geometry.grasp_opening(w, arm, obj, wps[0][-1])
+                hit = geometry._movables_on_line(w.with_gripper(arm, opened), arm, wps[0], [0.0]) - {obj}
+                hit |= _movables_on(geometry, w, arm, list(wps[1]), (obj,), gripper=opened)
                 # a rough guess at the transit's sweep: the straight joint-space line to the pre-grasp
                 sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], wps[0][0]), (obj,), gripper=None)
             out.append(((len(hit), len(sweep)), idx, base, kind, T, wps, xy))
@@ -177,6 +178,7 @@ class ClutterSampler(EpochState):
         if world.holder(obj) != arm:
             return
         G = world.held[arm][1]
+        opened = geometry.opening(obj, G)
         spots = []
         geometry.sync(world)
         target = geometry.layout.target
@@ -200,13 +202,13 @@ class ClutterSampler(EpochState):
                 if put is None:
                     continue
                 lower = _line(geometry, w, arm, T, lambda d, T=T: trans(0, 0, d) @ T, LIFT, put, rng)
-                back = _line(geometry, w.with_gripper(arm, "open"), arm, T, lambda d, T=T: T @ trans(-d, 0, 0), PRE_GRASP, put,
-                             rng, gripper="open")
+                back = _line(geometry, w.with_gripper(arm, opened), arm, T, lambda d, T=T: T @ trans(-d, 0, 0), PRE_GRASP, put,
+                             rng, gripper=opened)
                 if lower is None or back is None:
                     continue
                 with geometry.stats.timer("collision_checking"):
                     hit = _movables_on(geometry, w, arm, lower, (), gripper=None)
-                    hit |= _movables_on(geometry, w, arm, back, ())
+                    hit |= _movables_on(geometry, w, arm, back, (), gripper=opened)
                     sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], lower[-1]), (), gripper=None)
                 # a spot on a known approach blocks a later pick for sure: worse than a guessed transit hit
                 found.append(((len(hit), blocks, len(sweep)), rank, base, x, y, P, T, lower, back))
@@ -244,9 +246,10 @@ def _with_hover(geometry, world, arm, T, wps, rng, obj):
 
     approach, lift = wps
     pre_T = T @ trans(-PRE_GRASP, 0, 0)
-    down = _line(geometry, world.with_gripper(arm, "open"), arm, pre_T, lambda d: trans(0, 0, d) @ pre_T, HOVER,
-                 approach[0], rng, (obj,), "open")
-    if down is None or not geometry.static_path_ok(world.with_gripper(arm, "open"), arm, down, (obj,)):
+    opened = geometry.opening(obj, np.linalg.inv(T) @ world.objects[obj])
+    down = _line(geometry, world.with_gripper(arm, opened), arm, pre_T, lambda d: trans(0, 0, d) @ pre_T, HOVER,
+                 approach[0], rng, (obj,), opened)
+    if down is None or not geometry.static_path_ok(world.with_gripper(arm, opened), arm, down, (obj,)):
         return wps
     return tuple(reversed(down)) + tuple(approach[1:]), lift
 

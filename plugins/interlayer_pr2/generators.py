@@ -84,28 +84,31 @@ def check_graspable(problem, name):
     return found
 
 
-def _waypoints(geometry, world, arm, T, kind, rng, ignore, attempts=10):
-    """(approach, raise) for tool pose T: ``approach`` is a list of IK solutions along the straight
-    line from the pre-grasp (PRE_GRASP behind T along the tool x axis) to T, each seeded by the next
-    one; ``raise`` lifts the grasp by LIFT, then withdraws it by PRE_GRASP (back along the approach
-    for side grasps, further up for top grasps), out of shelves and cubbies. None if IK fails, the
-    joint path strays, or a piece of it hits a fixed obstacle. ``attempts``: IK seeds for the grasp."""
-    grasp = geometry.ik(world, arm, T, rng, ignore=ignore, gripper="open", attempts=attempts)
+def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10):
+    """(approach, raise) for grasping ``obj`` at tool pose T: ``approach`` is a list of IK solutions
+    along the straight line from the pre-grasp (PRE_GRASP behind T along the tool x axis) to T, each
+    seeded by the next one; ``raise`` lifts the grasp by LIFT, then withdraws it by PRE_GRASP (back
+    along the approach for side grasps, further up for top grasps), out of shelves and cubbies. None if
+    IK fails, the joint path strays, or a piece of it hits a fixed obstacle (the gripper opened as the
+    grasp needs). ``attempts``: IK seeds for the grasp."""
+    ignore = (obj,)
+    opened = geometry.opening(obj, np.linalg.inv(T) @ world.objects[obj])
+    grasp = geometry.ik(world, arm, T, rng, ignore=ignore, gripper=opened, attempts=attempts)
     if grasp is None:
         return None
-    line = _line(geometry, world, arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, grasp, rng, ignore, "open")
-    if line is None or not geometry.static_path_ok(world.with_gripper(arm, "open"), arm, line, ignore):
+    line = _line(geometry, world, arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, grasp, rng, ignore, opened)
+    if line is None or not geometry.static_path_ok(world.with_gripper(arm, opened), arm, line, ignore):
         return None
-    up = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, grasp, rng, ignore, "open")
+    up = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, grasp, rng, ignore, opened)
     if up is None:
         return None
     U = trans(0, 0, LIFT) @ T
     back_at = (lambda d: trans(0, 0, d) @ U) if kind == "top" else (lambda d: U @ trans(-d, 0, 0))
-    back = _line(geometry, world, arm, U, back_at, PRE_GRASP, up[-1], rng, ignore, "open")
+    back = _line(geometry, world, arm, U, back_at, PRE_GRASP, up[-1], rng, ignore, opened)
     if back is None:
         return None
     lift = up + back[1:]
-    if not geometry.static_path_ok(world.with_gripper(arm, "open"), arm, lift, ignore):
+    if not geometry.static_path_ok(world.with_gripper(arm, opened), arm, lift, ignore):
         return None
     return tuple(reversed(line)), tuple(lift[1:])
 
@@ -144,7 +147,7 @@ def pick(problem, step, world, rng, limit: int = 6, grasps=None):
         yield Candidate(wps, {step.args[3]: T.tolist()}, f"{kind} grasp, tool yaw {math.degrees(_yaw(T)):.0f} deg")
     offered = grasps(world, heading, rng) if grasps else grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng)
     for kind, T in offered:
-        wps = _waypoints(geometry, world, arm, T, kind, rng, ignore=(obj,))
+        wps = _waypoints(geometry, world, arm, T, kind, rng, obj)
         if wps is None:
             continue
         n += 1
@@ -225,7 +228,7 @@ def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=No
         heading = _bearing(base, x, y)
         for kind, T in (grasps(w, heading, rng) if grasps else grasp_poses(geometry, obj, P, heading, kinds, rng, n_side=2)):
             # few IK seeds: most grasps found come from the first, and another base is cheaper than more seeds
-            wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,), attempts=3)
+            wps = _waypoints(geometry, w, arm, T, kind, rng, obj, attempts=3)
             if wps is not None:
                 n += 1
                 # the grasp found here travels with the world to pick, which offers it first
@@ -330,7 +333,8 @@ def place(problem, step, world, rng, variants: int = 4):
             continue
         lower = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, put, rng)
         back_at = (lambda d: trans(0, 0, d) @ T) if top else (lambda d: T @ trans(-d, 0, 0))
-        back = _line(geometry, world.with_gripper(arm, "open"), arm, T, back_at, PRE_GRASP, put, rng, gripper="open")
+        opened = geometry.opening(obj, G)
+        back = _line(geometry, world.with_gripper(arm, opened), arm, T, back_at, PRE_GRASP, put, rng, gripper=opened)
         if lower is None or back is None:
             continue
         yield Candidate((tuple(reversed(lower)), tuple(back[1:])), {step.args[4]: T.tolist(), "object_pose": P.tolist()},
