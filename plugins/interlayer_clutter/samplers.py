@@ -81,7 +81,7 @@ class ClutterSampler(EpochState):
     def grasp_candidates(self, problem, world, obj, arm, tries: int = 40):
         """(base, kind, T, waypoints, tool xy path) candidates for picking obj with arm where it stands;
         static checks only (IK, fixed obstacles), so they hold in every world with obj at this pose."""
-        from interlayer_pr2.generators import _bearing, _problem_grasps, _waypoints, check_graspable, grasp_poses
+        from interlayer_pr2.generators import _bearing, _problem_grasps, _waypoints, check_graspable, check_hand_fits, grasp_poses
 
         geometry = problem.geometry
         P = world.objects[obj]
@@ -121,6 +121,7 @@ class ClutterSampler(EpochState):
             self.grasps[key] = found
         else:
             self.misses[key] = misses + 1  # the next call searches with other samples
+            check_hand_fits(problem, world, obj)
         return found
 
     def ranked_grasps(self, problem, world, obj, arm):

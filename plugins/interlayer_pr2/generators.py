@@ -13,13 +13,14 @@ All are finite and seeded by ``rng``; they only check static geometry (IK, fixed
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
 from interlayer.refine import Candidate, Infeasible, stable_seed
 
 from .scene import REST_GAP, table_top
-from .world import LIFT, PRE_GRASP, pose4, rz, trans, wrap
+from .world import LIFT, OPEN_CLEARANCE, PRE_GRASP, pose4, rz, trans, wrap
 
 LINE_STEP = 0.05  # m between IK waypoints of straight-line approaches
 GRASP_CLEARANCE = 0.001  # the gripper must open at least this much wider than the object
@@ -82,6 +83,50 @@ def check_graspable(problem, name):
         raise Infeasible(f"{name} is {width:.3f} m wide but the PR2 gripper opens only "
                          f"{geometry.robot.max_gripper_opening:.3f} m: no grasp exists")
     return found
+
+
+def check_hand_fits(problem, world, obj):
+    """Raise Infeasible when the goal needs ``obj`` moved but every grasp of it where it stands puts the
+    hand, opened only as wide as the grasp needs, into a fixed obstacle (whatever the arm and base do:
+    fixed obstacles never move). Boxes only (their grasps are finitely many), objects not riding on an
+    articulated body; called when a pick generator found nothing, to say why."""
+    from interlayer import logic
+
+    geometry = problem.geometry
+    o = geometry.specs[obj]
+    needed = any(obj in p.args and logic.ground_atom(p, {}) not in problem.init
+                 for p, positive in logic.atoms_with_polarity(logic.parse(problem.goal)) if positive)
+    if o.shape != "box" or not needed or obj in world.riders or world.holder(obj) is not None:
+        return
+    rng = np.random.default_rng(0)
+    P = world.objects[obj]
+    poses = {}
+    for heading in np.linspace(-math.pi, math.pi, 8, endpoint=False):
+        for kind, T in grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng, n_side=1):
+            poses[tuple(np.round(T[:3, :4].ravel(), 6))] = T
+    if not poses:
+        return  # check_graspable names the width
+    ignore = tuple(geometry.fixed) + tuple(world.objects)
+    blockers = set()
+    for T in poses.values():
+        # a base 0.6 m behind the grasp, facing along the approach (a top grasp: from where the robot is)
+        yaw = math.atan2(T[1, 0], T[0, 0]) if abs(T[2, 0]) < 0.7 else math.atan2(P[1, 3] - world.base[1], P[0, 3] - world.base[0])
+        w = replace(world, held={}, base=(float(T[0, 3] - 0.6 * math.cos(yaw)), float(T[1, 3] - 0.6 * math.sin(yaw)), float(yaw)))
+        opened = geometry.opening(obj, np.linalg.inv(T) @ P)
+        found = ((a, geometry.ik(w, a, T, rng, ignore=ignore, gripper=opened)) for a in ("left", "right"))
+        arm, v = next(((a, v) for a, v in found if v is not None), (None, None))
+        if arm is None:
+            return  # not reached even with nothing in the way: no proof
+        q = geometry.sync(w.with_arm(arm, v).with_gripper(arm, opened))
+        hand = f"{arm[0]}_gripper_"
+        hits = {b for a, b in geometry.cw.collision_pairs(q, movables=False) if a.startswith(hand) and b in geometry.fixed}
+        if not hits:
+            return
+        blockers |= hits
+    padded = f"; planning keeps {geometry.padding * 100:.1f} cm from fixed obstacles" if geometry.padding else ""
+    raise Infeasible(f"every grasp of {obj} that fits the gripper puts the PR2's fingers into {', '.join(sorted(blockers))} "
+                     f"where {obj} stands (the gripper opened only {OPEN_CLEARANCE * 100:.0f} cm wider than {obj}{padded}), "
+                     f"and the goal needs {obj} moved")
 
 
 def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10):
@@ -178,8 +223,6 @@ def move_base(problem, step, world, rng, limit: int = 6, tries: int = 60, grasps
 
 
 def _base_free(geometry, world, base) -> bool:
-    from dataclasses import replace
-
     w = replace(world, base=tuple(base))
     if not geometry.base_space.within_bounds(base):
         return False
@@ -208,8 +251,6 @@ def _free_bases(geometry, world, x, y, rng, tries):
 
 
 def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=None):
-    from dataclasses import replace
-
     geometry = problem.geometry
     if world.holder(obj) is not None or world.held.get(arm):
         return
@@ -237,6 +278,8 @@ def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=No
                 if n >= limit:
                     return
                 break
+    if not n:
+        check_hand_fits(problem, world, obj)
 
 
 def _heading_of_tool(T):
@@ -270,8 +313,6 @@ def _spots(problem, world, obj, loc, rng, tries):
 
 
 def _bases_for_putdown(problem, world, obj, arm, loc, ref, rng, limit, tries):
-    from dataclasses import replace
-
     geometry = problem.geometry
     if world.holder(obj) != arm:
         return
