@@ -195,7 +195,7 @@ class ClutterSampler(EpochState):
                 break  # past the best spots, search on while every spot found is certainly or likely blocked
             for _ in range(4 if rank < 3 * limit else 8):
                 base = _base_near(geometry, x, y, rng)
-                if base is None or not _base_free(problem.geometry, world, base):
+                if base is None or not _base_free(problem.geometry, world, base, tuck=arm):
                     continue
                 P, T = _putdown(G, x, y, z, math.atan2(y - base[1], x - base[0]) + rng.uniform(-0.3, 0.3))
                 w = replace(world, base=base)

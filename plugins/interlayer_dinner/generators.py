@@ -118,7 +118,7 @@ def _put(problem, step, world, rng, P, values, limit, tries):
     n = 0
     for _ in range(tries):
         base = near_base(rng, x, y)
-        if not _base_free(geometry, world, base):
+        if not _base_free(geometry, world, base, tuck=arm):
             continue
         Q, T = _putdown(G, x, y, z, _bearing(base, x, y) + rng.uniform(-0.3, 0.3))
         w = replace(world, base=base)

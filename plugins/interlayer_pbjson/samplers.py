@@ -115,7 +115,7 @@ class PBSampler(ClutterSampler):
                 break  # past the best spots, only search on while nothing at all was found
             for _ in range(per_spot if rank < 3 * limit else 2 * per_spot):
                 base = _base_near(geometry, x, y, rng)
-                if base is None or not _base_free(geometry, world, base):
+                if base is None or not _base_free(geometry, world, base, tuck=arm):
                     continue
                 P = pose_at(math.atan2(y - base[1], x - base[0]) + rng.uniform(-0.3, 0.3))
                 if P is None:

@@ -222,9 +222,16 @@ def move_base(problem, step, world, rng, limit: int = 6, tries: int = 60, grasps
         yield from _bases_for_putdown(problem, world, args[0], args[1], args[2], to, rng, limit, tries)
 
 
-def _base_free(geometry, world, base) -> bool:
+def _base_free(geometry, world, base, tuck=None) -> bool:
+    """The robot at ``base`` clear of fixed obstacles; with ``tuck`` (an arm putting something down), also
+    with that arm tucked and empty, as the put-down leaves it: the tucked elbow sticks out sideways."""
+    from interlayer_pinocchio import TUCKED_ARMS
+
     w = replace(world, base=tuple(base))
     if not geometry.base_space.within_bounds(base):
+        return False
+    if tuck is not None and geometry.in_collision(replace(w, held={a: h for a, h in w.held.items() if a != tuck})
+                                                  .with_arm(tuck, TUCKED_ARMS[tuck]), movables=False):
         return False
     return not geometry.in_collision(w, movables=False)
 
@@ -322,7 +329,7 @@ def _bases_for_putdown(problem, world, obj, arm, loc, ref, rng, limit, tries):
     for x, y, z in _spots(problem, world, obj, loc, rng, tries):
         for _ in range(4):
             base = _annulus(rng, x, y)
-            if not _base_free(geometry, world, base):
+            if not _base_free(geometry, world, base, tuck=arm):
                 continue
             P, T = _putdown(G, x, y, z, _bearing(base, x, y) + rng.uniform(-0.3, 0.3))
             w = replace(world, base=base)
