@@ -305,3 +305,23 @@ def test_nonmonotonic_green0_is_unsolvable_because_the_fingers_do_not_fit_beside
     result = api.solve(str(SHARED / "nonmonotonic_4_1.json"), ["planner.time_limit=120"])
     assert result.status == "unsolvable"
     assert "every grasp of green0 that fits the gripper puts the PR2's fingers into obst1" in result.reason, result.reason
+
+
+@needs_shared
+def test_a_put_down_base_must_leave_room_to_tuck_the_arm():
+    """kitchen.json seed 5 backtracked over 87 attempts on a put-down from this base: free with the arm
+    raised, but the tucked left elbow (how every put-down ends) hits kitchen_table."""
+    from dataclasses import replace
+
+    from interlayer_pinocchio import TUCKED_ARMS
+    from interlayer_pr2.generators import _base_free
+
+    g = api.prepare(str(SHARED / "kitchen.json")).problem.geometry
+    base = (0.17, 1.18, 0.86)
+    w = replace(g.initial_world(), arms={a: tuple(TUCKED_ARMS[a]) for a in TUCKED_ARMS}, base=base)
+    assert not _base_free(g, w, base)  # tucked, the left elbow is in the table
+    rng = np.random.default_rng(0)
+    raised = next(w2 for w2 in (w.with_arm("left", g.robot.group("left_arm").sample(rng)) for _ in range(100))
+                  if _base_free(g, w2, base))
+    assert not _base_free(g, raised, base, tuck="left")
+    assert _base_free(g, raised, base, tuck="right")
