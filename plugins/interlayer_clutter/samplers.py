@@ -81,7 +81,8 @@ class ClutterSampler(EpochState):
     def grasp_candidates(self, problem, world, obj, arm, tries: int = 40):
         """(base, kind, T, waypoints, tool xy path) candidates for picking obj with arm where it stands;
         static checks only (IK, fixed obstacles), so they hold in every world with obj at this pose."""
-        from interlayer_pr2.generators import _bearing, _problem_grasps, _waypoints, check_graspable, check_hand_fits, grasp_poses
+        from interlayer_pr2.generators import (_bearing, _problem_grasps, _waypoints, check_graspable, check_hand_fits,
+                                               grasp_poses)
 
         geometry = problem.geometry
         P = world.objects[obj]
@@ -203,8 +204,8 @@ class ClutterSampler(EpochState):
                 if put is None:
                     continue
                 lower = _line(geometry, w, arm, T, lambda d, T=T: trans(0, 0, d) @ T, LIFT, put, rng)
-                back = _line(geometry, w.with_gripper(arm, opened), arm, T, lambda d, T=T: T @ trans(-d, 0, 0), PRE_GRASP, put,
-                             rng, gripper=opened)
+                back = _line(geometry, w.with_gripper(arm, opened), arm, T, lambda d, T=T: T @ trans(-d, 0, 0), PRE_GRASP,
+                             put, rng, gripper=opened)
                 if lower is None or back is None:
                     continue
                 with geometry.stats.timer("collision_checking"):

@@ -110,8 +110,8 @@ def check_hand_fits(problem, world, obj):
     blockers = set()
     for T in poses.values():
         # a base 0.6 m behind the grasp, facing along the approach (a top grasp: from where the robot is)
-        yaw = math.atan2(T[1, 0], T[0, 0]) if abs(T[2, 0]) < 0.7 else math.atan2(P[1, 3] - world.base[1], P[0, 3] - world.base[0])
-        w = replace(world, held={}, base=(float(T[0, 3] - 0.6 * math.cos(yaw)), float(T[1, 3] - 0.6 * math.sin(yaw)), float(yaw)))
+        yaw = _yaw(T) if abs(T[2, 0]) < 0.7 else _bearing(world.base, P[0, 3], P[1, 3])
+        w = replace(world, held={}, base=(float(T[0, 3] - 0.6 * math.cos(yaw)), float(T[1, 3] - 0.6 * math.sin(yaw)), yaw))
         opened = geometry.opening(obj, np.linalg.inv(T) @ P)
         found = ((a, geometry.ik(w, a, T, rng, ignore=ignore, gripper=opened)) for a in ("left", "right"))
         arm, v = next(((a, v) for a, v in found if v is not None), (None, None))

@@ -124,7 +124,8 @@ def validate_trajectory(geometry, plan, trajectory, rules=None) -> list[str]:
                     return errors + [why or f"{at}: the {arm} gripper opens to {_width_of(robot, opened):.3f} m, "
                                             f"narrower than {obj} across the fingers ({width:.3f} m): it does not let go"]
                 held = {a: v for a, v in world.held.items() if a != arm}  # release = open the gripper + detach
-                world = replace(world, objects={**world.objects, obj: P}, held=held, grippers={**world.grippers, arm: opened})
+                world = replace(world, objects={**world.objects, obj: P}, held=held,
+                                grippers={**world.grippers, arm: opened})
                 if geometry.in_collision(world):
                     pairs = geometry.cw.collision_pairs(geometry.sync(world))
                     return errors + [f"{at}: {obj} released into a collision: {_pairs(pairs)}"]
