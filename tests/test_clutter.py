@@ -245,3 +245,25 @@ def test_the_sampler_answers_a_repeated_question_from_memory(host):
     assert first and [c.label for c in sampler(problem, place, held, np.random.default_rng(5))] == first
     sampler.putdown_candidates = computed
     assert [c.label for c in sampler(problem, place, held, np.random.default_rng(6))] != first
+
+
+def test_a_pick_whose_grasp_misses_the_object_fails():
+    """Plan shortcutting refines a later pick again with its old candidate after dropping an earlier
+    move of the same object: the grasp then closes on air, which the validator rejects. The pick's
+    refinement fails instead (before any motion is planned: the motion planner here is None)."""
+    from dataclasses import replace
+
+    from interlayer.domain import GroundStep
+    from interlayer_clutter.samplers import ClutterSampler
+
+    problem = _problem(["problem.objects=15", "planner.seed=0"])
+    geometry, world = problem.geometry, problem.geometry.initial_world()
+    t = geometry.layout.target
+    step = GroundStep("pick", (t, "left", "right", f"bpfg_{t}_left", f"gpfg_{t}_left", f"gpfg_{t}_right"))
+    cand = next(iter(ClutterSampler([0])(problem, step, world, None)))
+    world = replace(world, base=tuple(cand.waypoints[0]))  # no drive needed
+    assert geometry.grasps(world.with_arm("left", cand.waypoints[1][-1]), "left", t)
+    P = world.objects[t].copy()
+    P[:2, 3] += 0.1
+    out = geometry.refine_step(step, replace(world, objects={**world.objects, t: P}), cand, None)
+    assert not out.ok and "does not reach" in out.failure.detail
