@@ -84,12 +84,18 @@ def check_graspable(problem, name):
     return found
 
 
-def _waypoints(geometry, world, arm, T, kind, rng, ignore, attempts=10):
+def _waypoints(geometry, world, arm, T, kind, rng, ignore, attempts=10, hand_check=False):
     """(approach, raise) for tool pose T: ``approach`` is a list of IK solutions along the straight
     line from the pre-grasp (PRE_GRASP behind T along the tool x axis) to T, each seeded by the next
     one; ``raise`` lifts the grasp by LIFT, then withdraws it by PRE_GRASP (back along the approach
     for side grasps, further up for top grasps), out of shelves and cubbies. None if IK fails, the
-    joint path strays, or a piece of it hits a fixed obstacle. ``attempts``: IK seeds for the grasp."""
+    joint path strays, or a piece of it hits a fixed obstacle. ``attempts``: IK seeds for the grasp.
+    ``hand_check``: first reject, without IK, a grasp or pre-grasp whose hand alone touches a fixed obstacle."""
+    if hand_check:
+        open_hand = world.with_gripper(arm, "open")
+        if not (geometry.hand_free(open_hand, arm, T, ignore) and
+                geometry.hand_free(open_hand, arm, T @ trans(-PRE_GRASP, 0, 0), ignore)):
+            return None
     grasp = geometry.ik(world, arm, T, rng, ignore=ignore, gripper="open", attempts=attempts)
     if grasp is None:
         return None
@@ -144,7 +150,7 @@ def pick(problem, step, world, rng, limit: int = 6, grasps=None):
         yield Candidate(wps, {step.args[3]: T.tolist()}, f"{kind} grasp, tool yaw {math.degrees(_yaw(T)):.0f} deg")
     offered = grasps(world, heading, rng) if grasps else grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng)
     for kind, T in offered:
-        wps = _waypoints(geometry, world, arm, T, kind, rng, ignore=(obj,))
+        wps = _waypoints(geometry, world, arm, T, kind, rng, ignore=(obj,), hand_check=True)
         if wps is None:
             continue
         n += 1
@@ -225,7 +231,7 @@ def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=No
         heading = _bearing(base, x, y)
         for kind, T in (grasps(w, heading, rng) if grasps else grasp_poses(geometry, obj, P, heading, kinds, rng, n_side=2)):
             # few IK seeds: most grasps found come from the first, and another base is cheaper than more seeds
-            wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,), attempts=3)
+            wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,), attempts=3, hand_check=True)
             if wps is not None:
                 n += 1
                 # the grasp found here travels with the world to pick, which offers it first

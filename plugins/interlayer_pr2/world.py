@@ -31,6 +31,7 @@ RES_ARM = 0.02  # rad between collision checks when planning an arm (the validat
 # the validator uses the unpadded scene.
 PADDING = 0.015
 RES_BASE = 0.01  # m / rad between collision checks when planning the base
+STAGE = 0.05  # m: a transit into or out of a narrow place goes through a point this far behind it (see _transit)
 PRE_GRASP = 0.20  # back-off of the pre-grasp along the tool x axis (approach and retreat length)
 LIFT = 0.05  # raise after grasping / height above the put-down spot
 FOLLOWS = 1e3  # the velocity / acceleration "limit" of a joint driven by the hand (a drawer's slide)
@@ -172,7 +173,7 @@ class PR2Geometry:
         r = self.robot
         q = r.default_q(world.base)
         for arm in ARMS:
-            q = r.set(q, f"{arm}_arm", world.arms[arm])
+            r.group(f"{arm}_arm").write(q, world.arms[arm])  # in place: this runs at every sync
             if world.grippers[arm] == "open":
                 q = r.open_gripper(q, arm)
             elif not isinstance(world.grippers[arm], str):  # closed around something that is no object (a handle)
@@ -200,9 +201,10 @@ class PR2Geometry:
 
     def sync(self, world: World) -> np.ndarray:
         """Make the collision world match ``world``; returns its configuration."""
-        q = self.config(world)
         if world is self._synced:
-            return q
+            return self._synced_q.copy()
+        q = self.config(world)
+        self._synced_q = q.copy()
         last = self._synced
         if world.joints is not (last.joints if last is not None else None):
             for name, values in world.joints.items():
@@ -294,6 +296,13 @@ class PR2Geometry:
         q = self.sync(world)
         with self.stats.timer("collision_checking"):
             return self.cw.in_collision(q, movables=movables)
+
+    def hand_free(self, world, arm, T, ignore=(), movables=False) -> bool:
+        """The hand alone (opened as in ``world``) with its tool frame at ``T`` touches no fixed obstacle
+        (nor movables, if asked): a grasp that fails this needs no IK."""
+        q = self.sync(world)
+        with self.stats.timer("collision_checking"):
+            return not self.cw.hand_collides(q, arm, T, ignore, movables)
 
     def ik(self, world, arm, target, rng, movables=False, ignore=(), seed=None, attempts=8, gripper=None):
         """Arm vector reaching ``target`` from ``world``'s base (seeded by ``seed``), checked against
@@ -415,6 +424,48 @@ class PR2Geometry:
             segments.append(self._segment(kind, group, res.path, holding))
         return res
 
+    def _transit(self, motion, w, arm, start, goal, label, segs, acc, staged=None):
+        """An arm transit. ``staged`` ("start" or "goal") names an end in a narrow place (a grasp in a
+        cubby's mouth): the path first tried goes along the tool's x axis from that end to a staging
+        point STAGE behind it, so that the search runs in free space; then the plain query."""
+        from interlayer.motion import MotionPlan
+
+        group = f"{arm}_arm"
+        stage = self.layout.extra.get("stage", STAGE)
+        if staged and stage:
+            end = np.asarray(goal if staged == "goal" else start, float)
+            line = self._staging(w, arm, end, stage)  # from the end outwards
+            if line is not None and self.fine_ok(w, group, line, acc):
+                a, b = (start, line[-1]) if staged == "goal" else (line[-1], goal)
+                res = self._plan(motion, self.arm_query(w, arm, a, b, label, acc), "transit", group, [], _holding(w), w, acc)
+                if res.ok:
+                    path = (*res.path, *line[-2::-1]) if staged == "goal" else (*line[:-1], *res.path)
+                    segs.append(self._segment("transit", group, path, _holding(w)))
+                    return MotionPlan(True, path)
+                if res.obstructions:
+                    return res
+        return self._plan(motion, self.arm_query(w, arm, start, goal, label, acc), "transit", group, segs,
+                          _holding(w), w, acc)
+
+    def _staging(self, w, arm, v, stage):
+        """Arm vectors from ``v`` to the tool ``stage`` further back along its x axis, or None:
+        IK in steps of 5 cm, each seeded by the last, free of everything."""
+        from interlayer_pinocchio import solve_ik
+
+        q = self.sync(w.with_arm(arm, v))
+        T = self.robot.tool_pose(q, arm)
+        group = self.robot.group(f"{arm}_arm")
+        n = max(1, math.ceil(stage / 0.05 - 1e-9))
+        line = [np.asarray(v, float)]
+        for k in range(1, n + 1):
+            with self.stats.timer("ik"):
+                u = solve_ik(self.robot, arm, T @ trans(-stage * k / n, 0, 0), group.set(q, line[-1]),
+                             rng=np.random.default_rng(0), world=self.cw, attempts=1)
+            if u is None or self.arm_space[arm].distance(u, line[-1]) > 0.35:
+                return None
+            line.append(u)
+        return line
+
     def fine_ok(self, world, group, path, acc=None) -> bool:
         """The path is collision-free at the validator's resolution (5x finer than planning)."""
         q = self.sync(world)
@@ -500,8 +551,7 @@ class PR2Geometry:
         approach, lift = cand.waypoints
         pre, grasp = approach[0], approach[-1]
         group, segs, w = f"{arm}_arm", [], world
-        res = self._plan(motion, self.arm_query(w, arm, w.arms[arm], pre, "pick transit", acc), "transit", group, segs,
-                         _holding(w), w, acc)
+        res = self._transit(motion, w, arm, w.arms[arm], pre, "pick transit", segs, acc, staged="goal")
         if not res.ok:
             return _failure(res, "pick transit", obj)
         w, stuck = self.set_gripper(w.with_arm(arm, pre), arm, "open", segs,
@@ -525,8 +575,7 @@ class PR2Geometry:
         carry = self.carry(w, arm, np.random.default_rng(0))
         if carry is None:
             return StepOutcome(False, failure=Failure("ik", (), "no collision-free carry posture"))
-        res = self._plan(motion, self.arm_query(w, arm, lift[-1], carry, "pick carry", acc), "transit", group, segs,
-                         _holding(w), w, acc)
+        res = self._transit(motion, w, arm, lift[-1], carry, "pick carry", segs, acc, staged="start")
         if not res.ok:
             return _failure(res, "pick carry", obj)
         return StepOutcome(True, w.with_arm(arm, carry), segs)
