@@ -31,7 +31,6 @@ RES_ARM = 0.02  # rad between collision checks when planning an arm (the validat
 # the validator uses the unpadded scene.
 PADDING = 0.015
 RES_BASE = 0.01  # m / rad between collision checks when planning the base
-STAGE = 0.05  # m: a transit into or out of a narrow place goes through a point this far behind it (see _transit)
 PRE_GRASP = 0.20  # back-off of the pre-grasp along the tool x axis (approach and retreat length)
 LIFT = 0.05  # raise after grasping / height above the put-down spot
 FOLLOWS = 1e3  # the velocity / acceleration "limit" of a joint driven by the hand (a drawer's slide)
@@ -427,11 +426,12 @@ class PR2Geometry:
     def _transit(self, motion, w, arm, start, goal, label, segs, acc, staged=None):
         """An arm transit. ``staged`` ("start" or "goal") names an end in a narrow place (a grasp in a
         cubby's mouth): the path first tried goes along the tool's x axis from that end to a staging
-        point STAGE behind it, so that the search runs in free space; then the plain query."""
+        point behind it (the layout's "stage", in m; 0: off), so that the search runs in free space; then
+        the plain query."""
         from interlayer.motion import MotionPlan
 
         group = f"{arm}_arm"
-        stage = self.layout.extra.get("stage", STAGE)
+        stage = self.layout.extra.get("stage", 0.0)
         if staged and stage:
             end = np.asarray(goal if staged == "goal" else start, float)
             line = self._staging(w, arm, end, stage)  # from the end outwards
