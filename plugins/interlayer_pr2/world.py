@@ -200,11 +200,15 @@ class PR2Geometry:
 
     def sync(self, world: World) -> np.ndarray:
         """Make the collision world match ``world``; returns its configuration."""
-        if world is self._synced:
-            return self._synced_q.copy()
-        q = self.config(world)
-        self._synced_q = q.copy()
         last = self._synced
+        if world is last:
+            return self._synced_q.copy()
+        if last is not None and world.arms is last.arms and world.grippers is last.grippers and world.held is last.held:
+            q = self._synced_q.copy()  # only the base moved (replace(world, base=...)): base samplers do this a lot
+            self.robot.group("base").write(q, world.base)
+        else:
+            q = self.config(world)
+        self._synced_q = q.copy()
         if world.joints is not (last.joints if last is not None else None):
             for name, values in world.joints.items():
                 self.bodies[name].update(self.cw, values)
