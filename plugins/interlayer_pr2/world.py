@@ -289,23 +289,21 @@ class PR2Geometry:
 
     def static_path_ok(self, world, arm, path, ignore=()) -> bool:
         """The piecewise-straight arm path avoids fixed obstacles (checked at RES_ARM)."""
-        q = self.sync(world)
-        group = self.robot.group(f"{arm}_arm")
-        check = self.cw.checker_for(f"{arm}_arm", q, ignore=tuple(ignore), movables=False)
-        with self.stats.timer("collision_checking"):
+        with self.stats.timer("collision_checking"):  # the sync (the robot's configuration) is the check's set-up
+            q = self.sync(world)
+            group = self.robot.group(f"{arm}_arm")
+            check = self.cw.checker_for(f"{arm}_arm", q, ignore=tuple(ignore), movables=False)
             return all(check(v) for v in self.arm_space[arm].densify(list(path)) if group.within_bounds(v))
 
     def in_collision(self, world, movables=True) -> bool:
-        q = self.sync(world)
         with self.stats.timer("collision_checking"):
-            return self.cw.in_collision(q, movables=movables)
+            return self.cw.in_collision(self.sync(world), movables=movables)
 
     def hand_free(self, world, arm, T, ignore=(), movables=False) -> bool:
         """The hand alone (opened as in ``world``) with its tool frame at ``T`` touches no fixed obstacle
         (nor movables, if asked): a grasp that fails this needs no IK."""
-        q = self.sync(world)
         with self.stats.timer("collision_checking"):
-            return not self.cw.hand_collides(q, arm, T, ignore, movables)
+            return not self.cw.hand_collides(self.sync(world), arm, T, ignore, movables)
 
     def ik(self, world, arm, target, rng, movables=False, ignore=(), seed=None, attempts=8, gripper=None):
         """Arm vector reaching ``target`` from ``world``'s base (seeded by ``seed``), checked against
@@ -315,8 +313,8 @@ class PR2Geometry:
         w = world.with_arm(arm, REACH_SEED[arm] if seed is None else seed)
         if gripper:
             w = w.with_gripper(arm, gripper)
-        q = self.sync(w)
-        with self.stats.timer("ik"):
+        with self.stats.timer("ik"):  # the sync (the seed configuration) is the solver's set-up
+            q = self.sync(w)
             return solve_ik(self.robot, arm, target, q, rng=rng, world=self.cw, attempts=attempts,
                             ignore=tuple(ignore), movables=movables)
 
