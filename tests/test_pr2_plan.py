@@ -174,9 +174,9 @@ def test_a_grasp_whose_hand_hits_a_panel_is_rejected_without_ik():
             return geo.ik(*a, **k)
 
     rng = np.random.default_rng(0)
-    assert _waypoints(Counting(), world, "left", in_panel, "side", rng, ("target",), hand_check=True) is None
+    assert _waypoints(Counting(), world, "left", in_panel, "side", rng, "target", hand_check=True) is None
     assert calls == []
-    _waypoints(Counting(), world, "left", in_panel, "side", rng, ("target",))
+    _waypoints(Counting(), world, "left", in_panel, "side", rng, "target")
     assert calls  # without the check, IK is tried
 
 

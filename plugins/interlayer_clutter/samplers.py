@@ -81,7 +81,8 @@ class ClutterSampler(EpochState):
     def grasp_candidates(self, problem, world, obj, arm, tries: int = 40):
         """(base, kind, T, waypoints, tool xy path) candidates for picking obj with arm where it stands;
         static checks only (IK, fixed obstacles), so they hold in every world with obj at this pose."""
-        from interlayer_pr2.generators import _bearing, _problem_grasps, _waypoints, check_graspable, grasp_poses
+        from interlayer_pr2.generators import (_bearing, _problem_grasps, _waypoints, check_graspable, check_hand_fits,
+                                               grasp_poses)
 
         geometry = problem.geometry
         P = world.objects[obj]
@@ -109,7 +110,7 @@ class ClutterSampler(EpochState):
                 continue
             w = replace(w0, base=base)
             for kind, T in grasp_poses(geometry, obj, P, _bearing(base, x, y), kinds, rng, n_side=2):
-                wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,))
+                wps = _waypoints(geometry, w, arm, T, kind, rng, obj)
                 if wps is None:
                     continue
                 wps = _with_hover(geometry, w, arm, T, wps, rng, obj)
@@ -121,6 +122,7 @@ class ClutterSampler(EpochState):
             self.grasps[key] = found
         else:
             self.misses[key] = misses + 1  # the next call searches with other samples
+            check_hand_fits(problem, world, obj)
         return found
 
     def ranked_grasps(self, problem, world, obj, arm):
@@ -134,8 +136,9 @@ class ClutterSampler(EpochState):
             w = replace(world, base=base)
             with geometry.stats.timer("collision_checking"):
                 # exactly the refinement's first check: the approach (hover descent included), densified
-                hit = geometry._movables_on_line(w.with_gripper(arm, "open"), arm, wps[0], [0.0]) - {obj}
-                hit |= _movables_on(geometry, w, arm, list(wps[1]), (obj,))
+                opened = geometry.grasp_opening(w, arm, obj, wps[0][-1])
+                hit = geometry._movables_on_line(w.with_gripper(arm, opened), arm, wps[0], [0.0]) - {obj}
+                hit |= _movables_on(geometry, w, arm, list(wps[1]), (obj,), gripper=opened)
                 # a rough guess at the transit's sweep: the straight joint-space line to the pre-grasp
                 sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], wps[0][0]), (obj,), gripper=None)
             out.append(((len(hit), len(sweep)), idx, base, kind, T, wps, xy))
@@ -177,6 +180,7 @@ class ClutterSampler(EpochState):
         if world.holder(obj) != arm:
             return
         G = world.held[arm][1]
+        opened = geometry.opening(obj, G)
         spots = []
         geometry.sync(world)
         target = geometry.layout.target
@@ -192,7 +196,7 @@ class ClutterSampler(EpochState):
                 break  # past the best spots, search on while every spot found is certainly or likely blocked
             for _ in range(4 if rank < 3 * limit else 8):
                 base = _base_near(geometry, x, y, rng)
-                if base is None or not _base_free(problem.geometry, world, base):
+                if base is None or not _base_free(problem.geometry, world, base, tuck=arm):
                     continue
                 P, T = _putdown(G, x, y, z, math.atan2(y - base[1], x - base[0]) + rng.uniform(-0.3, 0.3))
                 w = replace(world, base=base)
@@ -200,13 +204,13 @@ class ClutterSampler(EpochState):
                 if put is None:
                     continue
                 lower = _line(geometry, w, arm, T, lambda d, T=T: trans(0, 0, d) @ T, LIFT, put, rng)
-                back = _line(geometry, w.with_gripper(arm, "open"), arm, T, lambda d, T=T: T @ trans(-d, 0, 0), PRE_GRASP, put,
-                             rng, gripper="open")
+                back = _line(geometry, w.with_gripper(arm, opened), arm, T, lambda d, T=T: T @ trans(-d, 0, 0), PRE_GRASP,
+                             put, rng, gripper=opened)
                 if lower is None or back is None:
                     continue
                 with geometry.stats.timer("collision_checking"):
                     hit = _movables_on(geometry, w, arm, lower, (), gripper=None)
-                    hit |= _movables_on(geometry, w, arm, back, ())
+                    hit |= _movables_on(geometry, w, arm, back, (), gripper=opened)
                     sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], lower[-1]), (), gripper=None)
                 # a spot on a known approach blocks a later pick for sure: worse than a guessed transit hit
                 found.append(((len(hit), blocks, len(sweep)), rank, base, x, y, P, T, lower, back))
@@ -244,9 +248,10 @@ def _with_hover(geometry, world, arm, T, wps, rng, obj):
 
     approach, lift = wps
     pre_T = T @ trans(-PRE_GRASP, 0, 0)
-    down = _line(geometry, world.with_gripper(arm, "open"), arm, pre_T, lambda d: trans(0, 0, d) @ pre_T, HOVER,
-                 approach[0], rng, (obj,), "open")
-    if down is None or not geometry.static_path_ok(world.with_gripper(arm, "open"), arm, down, (obj,)):
+    opened = geometry.opening(obj, np.linalg.inv(T) @ world.objects[obj])
+    down = _line(geometry, world.with_gripper(arm, opened), arm, pre_T, lambda d: trans(0, 0, d) @ pre_T, HOVER,
+                 approach[0], rng, (obj,), opened)
+    if down is None or not geometry.static_path_ok(world.with_gripper(arm, opened), arm, down, (obj,)):
         return wps
     return tuple(reversed(down)) + tuple(approach[1:]), lift
 

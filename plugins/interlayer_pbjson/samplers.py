@@ -108,13 +108,14 @@ class PBSampler(ClutterSampler):
 
         geometry = problem.geometry
         G = world.held[arm][1]
+        opened = geometry.opening(obj, G)
         found = []
         for rank, (x, y, pose_at) in enumerate(spots):
             if rank >= 3 * limit and found:
                 break  # past the best spots, only search on while nothing at all was found
             for _ in range(per_spot if rank < 3 * limit else 2 * per_spot):
                 base = _base_near(geometry, x, y, rng)
-                if base is None or not _base_free(geometry, world, base):
+                if base is None or not _base_free(geometry, world, base, tuck=arm):
                     continue
                 P = pose_at(math.atan2(y - base[1], x - base[0]) + rng.uniform(-0.3, 0.3))
                 if P is None:
@@ -129,13 +130,13 @@ class PBSampler(ClutterSampler):
                 if put is None:
                     continue
                 lower = _line(geometry, w, arm, T, lambda d, T=T: trans(0, 0, d) @ T, LIFT, put, rng)
-                back = _line(geometry, w.with_gripper(arm, "open"), arm, T, lambda d, T=T: T @ trans(-d, 0, 0), PRE_GRASP,
-                             put, rng, gripper="open")
+                back = _line(geometry, w.with_gripper(arm, opened), arm, T, lambda d, T=T: T @ trans(-d, 0, 0), PRE_GRASP,
+                             put, rng, gripper=opened)
                 if lower is None or back is None:
                     continue
                 with geometry.stats.timer("collision_checking"):
                     hit = _movables_on(geometry, w, arm, lower, (), gripper=None) | hits
-                    hit |= _movables_on(geometry, w, arm, back, ())
+                    hit |= _movables_on(geometry, w, arm, back, (), gripper=opened)
                     sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], lower[-1]), (), gripper=None)
                 found.append(((len(hit), len(sweep)), rank, base, x, y, P, T, lower, back))
                 break
