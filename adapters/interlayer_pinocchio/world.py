@@ -405,7 +405,8 @@ class CollisionWorld:
                 cache[gid] = geom
         return cache
 
-    def hand_collides(self, q, arm: str, tool_pose, ignore: Iterable[str] = frozenset(), movables: bool = False) -> bool:
+    def hand_collides(self, q, arm: str, tool_pose, ignore: Iterable[str] = frozenset(),
+                      movables: bool = False) -> bool:
         """Whether ``arm``'s hand (palm and fingers, opened as in ``q``) with its tool frame at ``tool_pose``
         touches an environment object that is not held or ignored (movable ones only if ``movables``).
         No IK: any arm configuration that reaches that tool pose puts the hand there, so a grasp whose

@@ -33,7 +33,8 @@ def _approaches(geometry, pose, rng, per_pose=2):
         pre = _backoff(pose, d)
         with geometry.stats.timer("collision_checking"):
             free = all(geometry.static_free(_backoff(pose, t)) for t in np.arange(0.0, d, 0.02)) and \
-                all(geometry.static_free((pre[0] + dx, pre[1] + dy, pre[2])) for dx in (-0.05, 0.05) for dy in (-0.05, 0.05))
+                all(geometry.static_free((pre[0] + dx, pre[1] + dy, pre[2]))
+                    for dx in (-0.05, 0.05) for dy in (-0.05, 0.05))
         if free:
             out.append(pre)
             if len(out) == per_pose:
@@ -82,7 +83,8 @@ def place(problem, step, world, rng, samples: int = 12):
         block_pose = (float(x), float(y), float(_wrap(rng.choice([0.0, math.pi / 2]) + rng.uniform(-0.1, 0.1))))
         gripper = (block_pose[0], block_pose[1], _wrap(block_pose[2] - offset))
         with geometry.stats.timer("collision_checking"):
-            free = geometry.block_fits(world, block, block_pose, movables=region != "S") and geometry.static_free(gripper)
+            free = geometry.block_fits(world, block, block_pose, movables=region != "S") and \
+                geometry.static_free(gripper)
         if not free:
             continue
         for pre in _approaches(geometry, gripper, rng, per_pose=1):

@@ -462,7 +462,8 @@ class PR2Geometry:
             line = self._staging(w, arm, end, stage)  # from the end outwards
             if line is not None and self.fine_ok(w, group, line, acc):
                 a, b = (start, line[-1]) if staged == "goal" else (line[-1], goal)
-                res = self._plan(motion, self.arm_query(w, arm, a, b, label, acc), "transit", group, [], _holding(w), w, acc)
+                res = self._plan(motion, self.arm_query(w, arm, a, b, label, acc), "transit", group, [],
+                                 _holding(w), w, acc)
                 if res.ok:
                     path = (*res.path, *line[-2::-1]) if staged == "goal" else (*line[:-1], *res.path)
                     segs.append(self._segment("transit", group, path, _holding(w)))
