@@ -122,6 +122,28 @@ def test_initial_pose_goal_holds_at_the_start_and_after_a_return(tmp_path):
     assert np.allclose(C[:3, 3], (1.3, 0.0, 0.851))  # the body pose of the file, to the box's centre
 
 
+def test_an_object_standing_on_a_goal_pose_occupies_it_until_picked(tmp_path):
+    """a and b swap places (a's goal is b's start and the other way round): each occupies the other's goal
+    pose from the start, so the first task plan already holds one while the other is put in its place."""
+    from interlayer.abstraction import abstract
+    from interlayer.domain import GroundStep
+
+    a, b = [1, 0, 0, 0, 1.1, 0.1, 0.751], [1, 0, 0, 0, 1.2, -0.2, 0.751]  # the body poses of the scene
+    p = load(tmp_path, scene(goal_poses={"a": b, "b": a}))
+    assert {x for x in p.init if x[0] == "Occupies"} == {("Occupies", "b", "a"), ("Occupies", "a", "b")}
+    m = abstract(p)
+
+    def pick(o, arm, other):
+        return GroundStep("pick", (o, arm, other, f"bpfg_{o}_{arm}", f"gpfg_{o}_{arm}", f"gpfg_{o}_{other}"))
+
+    put_a = GroundStep("place_at_goal", ("a", "left", "bpfgp_a_left", "gpfgp_a_left"))
+    holding_a = m.progress(m.init, pick("a", "left", "right"))
+    assert not m.applicable(holding_a, put_a)  # b is still where a goes
+    assert m.applicable(m.progress(holding_a, pick("b", "right", "left")), put_a)
+    # an object put somewhere else occupies nothing: a goal pose away from both is free from the start
+    assert not any(x[0] == "Occupies" for x in load(tmp_path, scene(goal_poses={"a": [1, 0, 0, 0, 1.35, -0.2, 0.751]})).init)
+
+
 def test_clean_and_cook_semantics(tmp_path):
     """Symbolically: placing on the sink cleans; on the stove cooks only a clean object. The validator
     replays the releases of a trajectory the same way."""

@@ -124,6 +124,7 @@ def build_problem(scene, source) -> Problem:
         init.add(("HasGoalPose", o))
         if geometry.at_goal_pose(o, world.objects[o]):
             init.add(("AtGoalPose", o))
+        init |= {("Occupies", b, o) for b in geometry.goal_occupants(o, world)}
     parts = []
     if goals["holding"]:
         t = goals["holding"]
