@@ -11,7 +11,7 @@ from interlayer_pr2.scene import REST_GAP, base_limits, table_top
 from interlayer_pr2.world import ARMS, pose4
 
 
-def _base_near(geometry, x, y, rng, reach=(0.55, 0.95)):
+def base_near(geometry, x, y, rng, reach=(0.55, 0.95)):
     """A base pose facing (x, y) from outside the table, sampled around the table's sides."""
     from interlayer_pr2.generators import wrap
 
@@ -29,12 +29,13 @@ def _base_near(geometry, x, y, rng, reach=(0.55, 0.95)):
     return None
 
 
-def _coarse(a, b, n=8):
+def coarse_line(a, b, n=8):
+    """n evenly spaced configurations from a (excluded) to b: a rough guess at a transit's sweep."""
     a, b = np.asarray(a, float), np.asarray(b, float)
     return [a + (b - a) * k / n for k in range(1, n + 1)]
 
 
-def _movables_on(geometry, world, arm, path, ignore, gripper="open"):
+def movables_on(geometry, world, arm, path, ignore, gripper="open"):
     """Movable objects the arm (gripper open) touches at the waypoints of ``path``."""
     w = world.with_gripper(arm, gripper) if gripper else world
     hit = set()
@@ -76,7 +77,7 @@ class ClutterSampler(EpochState):
         self.corridors[(obj, arm)] = (_pose_key(world.objects[obj]), [c[6] for c in ranked[:3]])
         for nhit, _, base, kind, T, wps, _ in ranked[:limit]:
             yield Candidate((base, *wps), {bp_ref: list(base), gp_ref: T.tolist()},
-                            f"{kind} grasp from base {_fmt(base)} ({nhit[0]} objects on the approach, {nhit[1]} on the way)")
+                            f"{kind} grasp from base {fmt(base)} ({nhit[0]} objects on the approach, {nhit[1]} on the way)")
 
     def grasp_candidates(self, problem, world, obj, arm, tries: int = 40):
         """(base, kind, T, waypoints, tool xy path) candidates for picking obj with arm where it stands;
@@ -104,7 +105,7 @@ class ClutterSampler(EpochState):
         for i in range(n_bases + 2 * tries):
             if i >= n_bases and found:
                 break  # past the first bases, only search on while nothing at all was found
-            base = _base_near(geometry, x, y, rng)
+            base = base_near(geometry, x, y, rng)
             if base is None or not _base_free(geometry, w0, base):
                 continue
             w = replace(w0, base=base)
@@ -135,9 +136,9 @@ class ClutterSampler(EpochState):
             with geometry.stats.timer("collision_checking"):
                 # exactly the refinement's first check: the approach (hover descent included), densified
                 hit = geometry._movables_on_line(w.with_gripper(arm, "open"), arm, wps[0], [0.0]) - {obj}
-                hit |= _movables_on(geometry, w, arm, list(wps[1]), (obj,))
+                hit |= movables_on(geometry, w, arm, list(wps[1]), (obj,))
                 # a rough guess at the transit's sweep: the straight joint-space line to the pre-grasp
-                sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], wps[0][0]), (obj,), gripper=None)
+                sweep = movables_on(geometry, w, arm, coarse_line(w.arms[arm], wps[0][0]), (obj,), gripper=None)
             out.append(((len(hit), len(sweep)), idx, base, kind, T, wps, xy))
         out.sort(key=lambda f: (f[0], f[1]))
         return out
@@ -150,7 +151,7 @@ class ClutterSampler(EpochState):
         d_obj = min((math.hypot(x - Q[0, 3], y - Q[1, 3]) for Q in world.objects.values()), default=1.0)
         Tt = world.objects.get(target)
         d_t = math.hypot(x - Tt[0, 3], y - Tt[1, 3]) if Tt is not None else 1.0
-        return min(d_obj, 0.25) + 0.5 * min(d_t, 0.6) - 1.5 * edge - _in_corridors(x, y, corridors)
+        return min(d_obj, 0.25) + 0.5 * min(d_t, 0.6) - 1.5 * edge - in_corridors(x, y, corridors)
 
     def corridors_for(self, world, placing, target):
         """(penalty, footprint points) of the best grasps ranked in this epoch of every object still
@@ -169,7 +170,7 @@ class ClutterSampler(EpochState):
     def place(self, problem, step, world, rng, limit: int = 4, tries: int = 80):
         """A free table spot (far from the target and other objects first), a base pose to reach it, and
         the lowering / retreat arm paths."""
-        from interlayer_pr2.generators import LIFT, PRE_GRASP, _line, _putdown, trans
+        from interlayer_pr2.generators import _putdown
 
         obj, arm = step.args[0], step.args[1]
         bp_ref, pd_ref = step.args[3], step.args[4]
@@ -187,27 +188,14 @@ class ClutterSampler(EpochState):
         found = []
         clear, good = [], []  # candidates with nothing on their lowering and retreat; and off known approaches
         for rank, (_, x, y, z) in enumerate(spots):
-            blocks = _in_corridors(x, y, corridors)
+            blocks = in_corridors(x, y, corridors)
             if rank >= 3 * limit and (good or (clear and rank >= 6 * limit)):
                 break  # past the best spots, search on while every spot found is certainly or likely blocked
             for _ in range(4 if rank < 3 * limit else 8):
-                base = _base_near(geometry, x, y, rng)
-                if base is None or not _base_free(problem.geometry, world, base):
+                tried = putdown_motion(geometry, world, arm, x, y, lambda h, x=x, y=y, z=z: _putdown(G, x, y, z, h)[0], rng)
+                if tried is None:
                     continue
-                P, T = _putdown(G, x, y, z, math.atan2(y - base[1], x - base[0]) + rng.uniform(-0.3, 0.3))
-                w = replace(world, base=base)
-                put = geometry.ik(w, arm, T, rng, attempts=4)
-                if put is None:
-                    continue
-                lower = _line(geometry, w, arm, T, lambda d, T=T: trans(0, 0, d) @ T, LIFT, put, rng)
-                back = _line(geometry, w.with_gripper(arm, "open"), arm, T, lambda d, T=T: T @ trans(-d, 0, 0), PRE_GRASP, put,
-                             rng, gripper="open")
-                if lower is None or back is None:
-                    continue
-                with geometry.stats.timer("collision_checking"):
-                    hit = _movables_on(geometry, w, arm, lower, (), gripper=None)
-                    hit |= _movables_on(geometry, w, arm, back, ())
-                    sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], lower[-1]), (), gripper=None)
+                base, P, T, lower, back, hit, sweep = tried
                 # a spot on a known approach blocks a later pick for sure: worse than a guessed transit hit
                 found.append(((len(hit), blocks, len(sweep)), rank, base, x, y, P, T, lower, back))
                 clear += [found[-1]] if not hit else []
@@ -220,7 +208,37 @@ class ClutterSampler(EpochState):
             on = ", on a known approach" if blocks else ""
             yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])),
                             {bp_ref: list(base), pd_ref: T.tolist(), "tloc": (obj, P), "object_pose": P.tolist()},
-                            f"{obj} at {_fmt((x, y))} from base {_fmt(base)} ({hits} + {sweep} objects in the way{on})")
+                            f"{obj} at {fmt((x, y))} from base {fmt(base)} ({hits} + {sweep} objects in the way{on})")
+
+
+def putdown_motion(geometry, world, arm, x, y, pose_at, rng):
+    """One try at putting what ``arm`` holds down at (x, y): a base pose facing the spot, the object's
+    pose ``pose_at(tool heading)`` (None: none there), IK, the lowering and the retreat. Returns (base,
+    object pose, tool pose, lowering, retreat, movables on the lowering and retreat, movables on the
+    straight joint-space line from the arm's posture) or None."""
+    from interlayer_pr2.generators import LIFT, PRE_GRASP, _line, trans
+
+    base = base_near(geometry, x, y, rng)
+    if base is None or not _base_free(geometry, world, base):
+        return None
+    P = pose_at(math.atan2(y - base[1], x - base[0]) + rng.uniform(-0.3, 0.3))
+    if P is None:
+        return None
+    T = P @ np.linalg.inv(world.held[arm][1])
+    w = replace(world, base=base)
+    put = geometry.ik(w, arm, T, rng, attempts=4)
+    if put is None:
+        return None
+    lower = _line(geometry, w, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, put, rng)
+    back = _line(geometry, w.with_gripper(arm, "open"), arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, put, rng,
+                 gripper="open")
+    if lower is None or back is None:
+        return None
+    with geometry.stats.timer("collision_checking"):
+        hit = movables_on(geometry, w, arm, lower, (), gripper=None)
+        hit |= movables_on(geometry, w, arm, back, ())
+        sweep = movables_on(geometry, w, arm, coarse_line(w.arms[arm], lower[-1]), (), gripper=None)
+    return base, P, T, lower, back, hit, sweep
 
 
 def _reach_xy(base, T, step=0.05):
@@ -283,7 +301,7 @@ def _table_spots(geometry, world, obj, rng, tries, want=12):
         d = np.where(ok, -1.0, d)  # already offered
 
 
-def _in_corridors(x, y, corridors) -> float:
+def in_corridors(x, y, corridors) -> float:
     """The summed penalties of the corridors (see ClutterSampler.corridors_for) that (x, y) lies in."""
     return sum(weight for weight, xy in corridors if np.min(np.hypot(xy[:, 0] - x, xy[:, 1] - y)) < CORRIDOR)
 
@@ -292,5 +310,6 @@ def _pose_key(P):
     return tuple(np.round(np.asarray(P)[:3, :4].ravel(), 4))
 
 
-def _fmt(p):
+def fmt(p):
+    """A point or pose for a candidate's label."""
     return "(" + ", ".join(f"{v:.2f}" for v in p) + ")"
