@@ -11,14 +11,15 @@ from interlayer_pr2.scene import REST_GAP, base_limits, table_top
 from interlayer_pr2.world import ARMS, pose4
 
 
-def base_near(geometry, x, y, rng, reach=(0.55, 0.95)):
-    """A base pose facing (x, y) from outside the table, sampled around the table's sides."""
+def base_near(geometry, x, y, rng, reach=(0.55, 0.95), heading=None):
+    """A base pose facing (x, y) from outside the table, sampled around the table's sides; behind the
+    tool when its ``heading`` is fixed (a given object pose and grasp: most sides cannot reach it)."""
     from interlayer_pr2.generators import wrap
 
     xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
     (lx, hx), (ly, hy) = base_limits(geometry.layout)
     for _ in range(20):
-        r, a = rng.uniform(*reach), rng.uniform(-math.pi, math.pi)
+        r, a = rng.uniform(*reach), rng.uniform(-math.pi, math.pi) if heading is None else heading + math.pi + rng.uniform(-0.8, 0.8)
         bx, by = x + r * math.cos(a), y + r * math.sin(a)
         if xmin - 0.33 < bx < xmax + 0.33 and ymin - 0.33 < by < ymax + 0.33:
             continue  # the base would stand under the table
@@ -211,14 +212,15 @@ class ClutterSampler(EpochState):
                             f"{obj} at {fmt((x, y))} from base {fmt(base)} ({hits} + {sweep} objects in the way{on})")
 
 
-def putdown_motion(geometry, world, arm, x, y, pose_at, rng):
-    """One try at putting what ``arm`` holds down at (x, y): a base pose facing the spot, the object's
-    pose ``pose_at(tool heading)`` (None: none there), IK, the lowering and the retreat. Returns (base,
+def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None):
+    """One try at putting what ``arm`` holds down at (x, y): a base pose facing the spot (behind the tool
+    if its ``heading`` is fixed), the object's pose ``pose_at(tool heading)`` (None: none there), IK, the
+    lowering and the retreat. Returns (base,
     object pose, tool pose, lowering, retreat, movables on the lowering and retreat, movables on the
     straight joint-space line from the arm's posture) or None."""
     from interlayer_pr2.generators import LIFT, PRE_GRASP, _line, trans
 
-    base = base_near(geometry, x, y, rng)
+    base = base_near(geometry, x, y, rng, heading=heading)
     if base is None or not _base_free(geometry, world, base):
         return None
     P = pose_at(math.atan2(y - base[1], x - base[0]) + rng.uniform(-0.3, 0.3))

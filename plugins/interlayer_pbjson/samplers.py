@@ -84,9 +84,11 @@ class PBSampler(ClutterSampler):
             return P
 
         yield from self._putdowns(problem, world, obj, arm, step.args[4], step.args[5],
-                                  [(x, y, lambda h, x=x, y=y: pose_at(x, y, h)) for _, x, y in spots], rng)
+                                  [(x, y, lambda h, x=x, y=y: pose_at(x, y, h), None) for _, x, y in spots], rng)
 
     def place_at_goal(self, problem, step, world, rng):
+        from interlayer_pr2.generators import _yaw
+
         obj, arm = step.args[0], step.args[1]
         geometry = problem.geometry
         if world.holder(obj) != arm:
@@ -97,12 +99,14 @@ class PBSampler(ClutterSampler):
         yaw = math.atan2(C[1, 0], C[0, 0])
         x, y, z = (float(v) for v in C[:3, 3])
         variants = [pose4(x, y, z, yaw + k * period) for k in range(int(round(2 * math.pi / period)))]
+        G = world.held[arm][1]  # the tool's heading at each variant is fixed: the base stands behind it
         yield from self._putdowns(problem, world, obj, arm, step.args[2], step.args[3],
-                                  [(x, y, lambda h, P=P: P) for P in variants], rng, per_spot=8)
+                                  [(x, y, lambda h, P=P: P, _yaw(P @ np.linalg.inv(G))) for P in variants], rng, per_spot=8)
 
     def _putdowns(self, problem, world, obj, arm, bp_ref, pd_ref, spots, rng, limit: int = 4, per_spot: int = 4):
-        """Candidates (base, lowering, retreat) for the object poses ``spots`` offers: (x, y, pose(heading))
-        with heading the direction from the base to (x, y); fewest objects in the way first."""
+        """Candidates (base, lowering, retreat) for the object poses ``spots`` offers: (x, y, pose(heading),
+        the tool's heading if the pose fixes it) with heading the direction from the base to (x, y);
+        fewest objects in the way first."""
         geometry = problem.geometry
 
         def clear_of_fixed(pose_at):
@@ -115,11 +119,11 @@ class PBSampler(ClutterSampler):
             return at
 
         found = []
-        for rank, (x, y, pose_at) in enumerate(spots):
+        for rank, (x, y, pose_at, heading) in enumerate(spots):
             if rank >= 3 * limit and found:
                 break  # past the best spots, only search on while nothing at all was found
             for _ in range(per_spot if rank < 3 * limit else 2 * per_spot):
-                tried = putdown_motion(geometry, world, arm, x, y, clear_of_fixed(pose_at), rng)
+                tried = putdown_motion(geometry, world, arm, x, y, clear_of_fixed(pose_at), rng, heading)
                 if tried is None:
                     continue
                 base, P, T, lower, back, hit, sweep = tried
