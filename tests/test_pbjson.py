@@ -144,6 +144,43 @@ def test_an_object_standing_on_a_goal_pose_occupies_it_until_picked(tmp_path):
     assert not any(x[0] == "Occupies" for x in load(tmp_path, scene(goal_poses={"a": [1, 0, 0, 0, 1.35, -0.2, 0.751]})).init)
 
 
+def test_a_goal_pose_is_reached_from_behind_the_tool(tmp_path, monkeypatch):
+    """The goal pose and the grasp fix the tool's heading: bases are sampled behind the tool, not all
+    around the spot (the generator's draws repeat in every world of an epoch: a bad draw fails them all)."""
+    from dataclasses import replace
+
+    from interlayer.domain import GroundStep
+    from interlayer_clutter import samplers
+    from interlayer_clutter.samplers import base_near
+    from interlayer_pbjson.samplers import PBSampler
+    from interlayer_pr2.generators import grasp_poses
+
+    p = load(tmp_path, scene(goal_poses={"b": [1, 0, 0, 0, 1.35, -0.2, 0.751]}))
+    g = p.geometry
+    rng = np.random.default_rng(0)
+    for heading in (0.0, 2.5):
+        for _ in range(20):
+            bx, by, _ = base_near(g, 1.35, -0.2, rng, heading=heading)
+            assert abs(math.remainder(math.atan2(-0.2 - by, 1.35 - bx) - heading, 2 * math.pi)) <= 0.8 + 1e-9
+    w = replace(g.initial_world(), base=(0.6, -0.2, 0.0))
+    P = w.objects["b"]
+    _, T = grasp_poses(g, "b", P, 0.0, ("side",), np.random.default_rng(0), n_side=1)[0]
+    w = replace(w, objects={k: v for k, v in w.objects.items() if k != "b"}, held={"left": ("b", np.linalg.inv(T) @ P)})
+    w = w.with_arm("left", g.carry(w, "left", np.random.default_rng(0)))
+    step = GroundStep("place_at_goal", ("b", "left", "bpfgp_b_left", "gpfgp_b_left"))
+    asked = []
+
+    def recording(*args, heading=None, **kw):
+        asked.append(heading)
+        return base_near(*args, heading=heading, **kw)
+
+    monkeypatch.setattr(samplers, "base_near", recording)
+    found = list(PBSampler([0])(p, step, w, np.random.default_rng(0)))
+    assert found and asked and None not in asked
+    Tg = np.asarray(found[0].values["gpfgp_b_left"])
+    assert any(abs(math.remainder(h - math.atan2(Tg[1, 0], Tg[0, 0]), 2 * math.pi)) < 1e-6 for h in asked)
+
+
 def test_clean_and_cook_semantics(tmp_path):
     """Symbolically: placing on the sink cleans; on the stove cooks only a clean object. The validator
     replays the releases of a trajectory the same way."""
