@@ -317,3 +317,24 @@ def test_papers_scene_as_shipped_is_unsolvable_by_gripper_width(tmp_path):
     assert time.perf_counter() - t0 < 30
     api.write_outputs(result, tmp_path)
     assert "problem" in (tmp_path / "config.toml").read_text()  # rebuildable: problem.file is recorded
+
+
+def test_the_base_stays_inside_the_walls_around_it(tmp_path):
+    """Base poses beyond a room's walls are collision-free but no drive reaches them: the base's limits
+    end at the walls (a wall with a doorway wide enough for the base does not stop it)."""
+    from interlayer_pbjson.loader import reachable_limits
+    from interlayer_pr2.scene import ObjectSpec
+
+    def wall(name, x, y, sx, sy):
+        return _body(name, (x, y, 0.2), [_box((sx / 2, sy / 2, 0.2))])
+
+    data = scene(goal_regions={"b": "goal"})
+    data["bodies"] += [wall("w1", 0.6, -2.0, 5.0, 0.02), wall("w2", 0.6, 2.0, 5.0, 0.02), wall("w3", 2.5, 0.0, 0.02, 4.0),
+                       wall("w4", -1.5, 0.0, 0.02, 4.0)]
+    (xmin, xmax), (ymin, ymax) = load(tmp_path, data).geometry.layout.extra["base_limits"]
+    assert -1.5 < xmin < -1.1 and 2.1 < xmax < 2.5 and -2.0 < ymin < -1.6 and 1.6 < ymax < 2.0
+    walls = [ObjectSpec("w", "box", (0.02, 4.0, 0.4), (1.0, 2.5, 0.2, 0.0), movable=False),  # x = 1, y from 0.5 up
+             ObjectSpec("v", "box", (0.02, 4.0, 0.4), (1.0, -2.5, 0.2, 0.0), movable=False)]  # y from -0.5 down
+    assert reachable_limits(walls, (0.0, 0.0), (-3.0, 3.0), (-3.0, 3.0))[0][1] == 3.0  # through the 1 m doorway
+    walls[1] = ObjectSpec("v", "box", (0.02, 4.0, 0.4), (1.0, -1.8, 0.2, 0.0), movable=False)  # 0.3 m: too narrow
+    assert reachable_limits(walls, (0.0, 0.0), (-3.0, 3.0), (-3.0, 3.0))[0][1] < 1.0
