@@ -19,7 +19,8 @@ def base_near(geometry, x, y, rng, reach=(0.55, 0.95), heading=None):
     xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
     (lx, hx), (ly, hy) = base_limits(geometry.layout)
     for _ in range(20):
-        r, a = rng.uniform(*reach), rng.uniform(-math.pi, math.pi) if heading is None else heading + math.pi + rng.uniform(-0.8, 0.8)
+        r = rng.uniform(*reach)
+        a = rng.uniform(-math.pi, math.pi) if heading is None else heading + math.pi + rng.uniform(-0.8, 0.8)
         bx, by = x + r * math.cos(a), y + r * math.sin(a)
         if xmin - 0.33 < bx < xmax + 0.33 and ymin - 0.33 < by < ymax + 0.33:
             continue  # the base would stand under the table
@@ -215,9 +216,8 @@ class ClutterSampler(EpochState):
 def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None):
     """One try at putting what ``arm`` holds down at (x, y): a base pose facing the spot (behind the tool
     if its ``heading`` is fixed), the object's pose ``pose_at(tool heading)`` (None: none there), IK, the
-    lowering and the retreat. Returns (base,
-    object pose, tool pose, lowering, retreat, movables on the lowering and retreat, movables on the
-    straight joint-space line from the arm's posture) or None."""
+    lowering and the retreat. Returns (base, object pose, tool pose, lowering, retreat, movables on the
+    lowering and retreat, movables on the straight joint-space line from the arm's posture) or None."""
     from interlayer_pr2.generators import LIFT, PRE_GRASP, _line, trans
 
     base = base_near(geometry, x, y, rng, heading=heading)
