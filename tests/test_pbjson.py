@@ -338,3 +338,70 @@ def test_the_base_stays_inside_the_walls_around_it(tmp_path):
     assert reachable_limits(walls, (0.0, 0.0), (-3.0, 3.0), (-3.0, 3.0))[0][1] == 3.0  # through the 1 m doorway
     walls[1] = ObjectSpec("v", "box", (0.02, 4.0, 0.4), (1.0, -1.8, 0.2, 0.0), movable=False)  # 0.3 m: too narrow
     assert reachable_limits(walls, (0.0, 0.0), (-3.0, 3.0), (-3.0, 3.0))[0][1] < 1.0
+
+
+def wall_scene(gap=0.07):
+    """Box a (0.10 deep, 0.03 across, 0.16 tall) stands ``gap`` beside a fixed wall taller than itself:
+    the only grasps close across its 3 cm, one finger between it and the wall. At 7 cm the fully opened
+    fingers do not fit there (nor, with the planner's padding, fingers opened 4.6 cm), fingers opened 4 cm do."""
+    data = scene(goal_holding="a")
+    data["bodies"][3] = _body("a", (1.05, 0.0, 0.751), [_box((0.05, 0.015, 0.08), (0, 0, 0.08), color=(0, 0, 1))])
+    data["bodies"].append(_body("wall", (1.2, 0.015 + gap + 0.02, 0.751), [_box((0.3, 0.02, 0.1), (0, 0, 0.1))]))
+    data["task"]["object_names"] = ["a"]
+    del data["bodies"][4]
+    return data
+
+
+def test_a_grasp_beside_a_wall_opens_the_gripper_only_as_wide_as_it_needs(tmp_path):
+    path = tmp_path / "wall.json"
+    path.write_text(json.dumps(wall_scene()))
+    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=120"])
+    assert result.status == "solved", result.reason
+    out = tmp_path / "out"
+    api.write_outputs(result, out)
+    assert api.validate(out) == []
+    trajectory = json.loads((out / "trajectory.json").read_text())
+    opens = [s for step in trajectory["steps"] for s in step["segments"] if s["kind"] == "gripper" and s["command"] == "open"]
+    assert opens and all(0.03 < s["width"] < 0.05 for s in opens), opens
+
+    # the same trajectory with the gripper opened fully before the grasp: the validator finds the fingers in the wall
+    for s in opens:
+        del s["width"]
+    (out / "trajectory.json").write_text(json.dumps(trajectory))
+    errors = api.validate(out)
+    assert errors and "finger" in errors[0] and "-wall" in errors[0], errors
+
+
+def test_a_box_whose_every_grasp_puts_the_fingers_into_a_wall_is_unsolvable_naming_the_wall(tmp_path):
+    path = tmp_path / "wall.json"
+    path.write_text(json.dumps(wall_scene(gap=0.025)))  # as nonmonotonic_4_1.json's green0: the fingers are thicker
+    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=60"])
+    assert result.status == "unsolvable"
+    assert "every grasp of a that fits the gripper puts the PR2's fingers into wall" in result.reason, result.reason
+
+
+@needs_shared
+def test_nonmonotonic_green0_is_unsolvable_because_the_fingers_do_not_fit_beside_the_wall():
+    result = api.solve(str(SHARED / "nonmonotonic_4_1.json"), ["planner.time_limit=120"])
+    assert result.status == "unsolvable"
+    assert "every grasp of green0 that fits the gripper puts the PR2's fingers into obst1" in result.reason, result.reason
+
+
+@needs_shared
+def test_a_put_down_base_must_leave_room_to_tuck_the_arm():
+    """kitchen.json seed 5 backtracked over 87 attempts on a put-down from this base: free with the arm
+    raised, but the tucked left elbow (how every put-down ends) hits kitchen_table."""
+    from dataclasses import replace
+
+    from interlayer_pinocchio import TUCKED_ARMS
+    from interlayer_pr2.generators import _base_free
+
+    g = api.prepare(str(SHARED / "kitchen.json")).problem.geometry
+    base = (0.17, 1.18, 0.86)
+    w = replace(g.initial_world(), arms={a: tuple(TUCKED_ARMS[a]) for a in TUCKED_ARMS}, base=base)
+    assert not _base_free(g, w, base)  # tucked, the left elbow is in the table
+    rng = np.random.default_rng(0)
+    raised = next(w2 for w2 in (w.with_arm("left", g.robot.group("left_arm").sample(rng)) for _ in range(100))
+                  if _base_free(g, w2, base))
+    assert not _base_free(g, raised, base, tuck="left")
+    assert _base_free(g, raised, base, tuck="right")

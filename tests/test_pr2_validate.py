@@ -81,3 +81,20 @@ def test_goal_not_reached(hold_run, tmp_path):
 
     errors = _corrupt(hold_run[1], tmp_path, edit)
     assert errors, errors
+
+
+def test_a_gripper_opened_narrower_than_the_object(hold_run, place_run, tmp_path):
+    def narrow_open(traj):
+        _, seg = next(_segments(traj, "gripper"))
+        assert seg["command"] == "open" and "width" in seg  # opened only as wide as the grasp needs
+        seg["width"] = 0.02
+
+    errors = _corrupt(hold_run[1], tmp_path / "open", narrow_open)  # the approaching fingers run into the object
+    assert errors and "(approach): collision" in errors[0] and "finger_tip_link-blocker" in errors[0], errors
+
+    def narrow_release(traj):
+        _, seg = next(_segments(traj, "release"))
+        seg["width"] = 0.02
+
+    errors = _corrupt(place_run[1], tmp_path / "release", narrow_release)
+    assert errors and "does not let go" in errors[0], errors

@@ -118,6 +118,18 @@ def test_animation_replays_base_arms_and_held_object(run):
     assert np.allclose(tool @ grasp, T_end, atol=1e-6)
 
 
+
+def test_a_gripper_opened_only_as_wide_as_a_grasp_needs_is_drawn_at_that_width(run):
+    from interlayer_pr2.draw import _State
+
+    geometry, traj = run.problem.geometry, run.trajectory
+    robot = geometry.robot
+    st = _State(geometry, {**traj["initial"], "grippers": {"left": ["open", 0.05], "right": "open"}})  # as JSON has them
+    q = st.q()
+    assert robot.gripper_opening(q, "left") == pytest.approx(0.05, abs=1e-3)
+    assert robot.gripper_opening(q, "right") == pytest.approx(robot.max_gripper_opening, abs=1e-3)
+
+
 # ------------------------------------------------------------------ pages
 def test_pages_are_written_and_small(pages):
     explain = pages[1]

@@ -84,7 +84,8 @@ class ClutterSampler(EpochState):
     def grasp_candidates(self, problem, world, obj, arm, tries: int = 40):
         """(base, kind, T, waypoints, tool xy path) candidates for picking obj with arm where it stands;
         static checks only (IK, fixed obstacles), so they hold in every world with obj at this pose."""
-        from interlayer_pr2.generators import _bearing, _problem_grasps, _waypoints, check_graspable, grasp_poses
+        from interlayer_pr2.generators import (_bearing, _problem_grasps, _waypoints, check_graspable, check_hand_fits,
+                                               grasp_poses)
 
         geometry = problem.geometry
         P = world.objects[obj]
@@ -112,7 +113,7 @@ class ClutterSampler(EpochState):
                 continue
             w = replace(w0, base=base)
             for kind, T in grasp_poses(geometry, obj, P, _bearing(base, x, y), kinds, rng, n_side=2):
-                wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,))
+                wps = _waypoints(geometry, w, arm, T, kind, rng, obj)
                 if wps is None:
                     continue
                 wps = _with_hover(geometry, w, arm, T, wps, rng, obj)
@@ -124,6 +125,7 @@ class ClutterSampler(EpochState):
             self.grasps[key] = found
         else:
             self.misses[key] = misses + 1  # the next call searches with other samples
+            check_hand_fits(problem, world, obj)
         return found
 
     def ranked_grasps(self, problem, world, obj, arm):
@@ -137,8 +139,9 @@ class ClutterSampler(EpochState):
             w = replace(world, base=base)
             with geometry.stats.timer("collision_checking"):
                 # exactly the refinement's first check: the approach (hover descent included), densified
-                hit = geometry._movables_on_line(w.with_gripper(arm, "open"), arm, wps[0], [0.0]) - {obj}
-                hit |= movables_on(geometry, w, arm, list(wps[1]), (obj,))
+                opened = geometry.grasp_opening(w, arm, obj, wps[0][-1])
+                hit = geometry._movables_on_line(w.with_gripper(arm, opened), arm, wps[0], [0.0]) - {obj}
+                hit |= movables_on(geometry, w, arm, list(wps[1]), (obj,), gripper=opened)
                 # a rough guess at the transit's sweep: the straight joint-space line to the pre-grasp
                 sweep = movables_on(geometry, w, arm, coarse_line(w.arms[arm], wps[0][0]), (obj,), gripper=None)
             out.append(((len(hit), len(sweep)), idx, base, kind, T, wps, xy))
@@ -221,24 +224,26 @@ def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None):
     from interlayer_pr2.generators import LIFT, PRE_GRASP, _line, trans
 
     base = base_near(geometry, x, y, rng, heading=heading)
-    if base is None or not _base_free(geometry, world, base):
+    if base is None or not _base_free(geometry, world, base, tuck=arm):
         return None
     P = pose_at(math.atan2(y - base[1], x - base[0]) + rng.uniform(-0.3, 0.3))
     if P is None:
         return None
-    T = P @ np.linalg.inv(world.held[arm][1])
+    obj, G = world.held[arm]
+    opened = geometry.opening(obj, G)  # only as wide as the grasp needs
+    T = P @ np.linalg.inv(G)
     w = replace(world, base=base)
     put = geometry.ik(w, arm, T, rng, attempts=4)
     if put is None:
         return None
     lower = _line(geometry, w, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, put, rng)
-    back = _line(geometry, w.with_gripper(arm, "open"), arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, put, rng,
-                 gripper="open")
+    back = _line(geometry, w.with_gripper(arm, opened), arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, put, rng,
+                 gripper=opened)
     if lower is None or back is None:
         return None
     with geometry.stats.timer("collision_checking"):
         hit = movables_on(geometry, w, arm, lower, (), gripper=None)
-        hit |= movables_on(geometry, w, arm, back, ())
+        hit |= movables_on(geometry, w, arm, back, (), gripper=opened)
         sweep = movables_on(geometry, w, arm, coarse_line(w.arms[arm], lower[-1]), (), gripper=None)
     return base, P, T, lower, back, hit, sweep
 
@@ -264,9 +269,10 @@ def _with_hover(geometry, world, arm, T, wps, rng, obj):
 
     approach, lift = wps
     pre_T = T @ trans(-PRE_GRASP, 0, 0)
-    down = _line(geometry, world.with_gripper(arm, "open"), arm, pre_T, lambda d: trans(0, 0, d) @ pre_T, HOVER,
-                 approach[0], rng, (obj,), "open")
-    if down is None or not geometry.static_path_ok(world.with_gripper(arm, "open"), arm, down, (obj,)):
+    opened = geometry.opening(obj, np.linalg.inv(T) @ world.objects[obj])
+    down = _line(geometry, world.with_gripper(arm, opened), arm, pre_T, lambda d: trans(0, 0, d) @ pre_T, HOVER,
+                 approach[0], rng, (obj,), opened)
+    if down is None or not geometry.static_path_ok(world.with_gripper(arm, opened), arm, down, (obj,)):
         return wps
     return tuple(reversed(down)) + tuple(approach[1:]), lift
 

@@ -69,11 +69,12 @@ def pick(problem, step, world, rng, limit: int = 4, tries: int = 60):
             continue
         w = replace(world, base=base)
         for kind, T in grasp_poses(geometry, obj, P, _bearing(base, x, y), _problem_grasps(problem, obj), rng, n_side=2):
-            wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,))
+            wps = _waypoints(geometry, w, arm, T, kind, rng, obj)
             if wps is None:
                 continue
             with geometry.stats.timer("collision_checking"):  # the approach must be clear: nothing to learn here
-                blocked = geometry._movables_on_line(w.with_gripper(arm, "open"), arm, wps[0], [0.0]) - {obj}
+                opened = geometry.grasp_opening(w, arm, obj, wps[0][-1])
+                blocked = geometry._movables_on_line(w.with_gripper(arm, opened), arm, wps[0], [0.0]) - {obj}
             if blocked:
                 continue
             n += 1
@@ -117,7 +118,7 @@ def _put(problem, step, world, rng, P, values, limit, tries):
     n = 0
     for _ in range(tries):
         base = near_base(rng, x, y)
-        if not _base_free(geometry, world, base):
+        if not _base_free(geometry, world, base, tuck=arm):
             continue
         Q, T = _putdown(G, x, y, z, _bearing(base, x, y) + rng.uniform(-0.3, 0.3))
         w = replace(world, base=base)
@@ -127,7 +128,8 @@ def _put(problem, step, world, rng, P, values, limit, tries):
         lower = _line(geometry, w, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, put, rng)
         top = abs(T[2, 0]) > 0.7
         back_at = (lambda d: trans(0, 0, d) @ T) if top else (lambda d: T @ trans(-d, 0, 0))
-        back = _line(geometry, w.with_gripper(arm, "open"), arm, T, back_at, PRE_GRASP, put, rng, gripper="open")
+        opened = geometry.opening(obj, G)
+        back = _line(geometry, w.with_gripper(arm, opened), arm, T, back_at, PRE_GRASP, put, rng, gripper=opened)
         if lower is None or back is None:
             continue
         n += 1

@@ -11,6 +11,7 @@ import numpy as np
 
 from interlayer_pr2.scene import REST_GAP
 from interlayer_pr2.validate import _inside, _pose_close, upright
+from interlayer_pr2.world import is_open
 
 from .scene import TOP, TRAY
 from .stacking import stackable
@@ -122,7 +123,7 @@ def handover(geometry, world, seg, at):
     obj, src, dst = seg.get("object"), seg.get("from"), seg.get("to")
     if world.held.get(src, (None,))[0] != obj or src == dst:
         return world, f"{at}: hands {obj} over from the {src} arm, which holds {world.held.get(src, ('nothing',))[0]}"
-    if dst in world.held or world.grippers.get(dst) != "open":
+    if dst in world.held or not is_open(world.grippers.get(dst)):
         return world, f"{at}: the {dst} gripper takes {obj} but is not open and empty"
     q = geometry.config(world)
     G = np.asarray(seg.get("grasp"), float)

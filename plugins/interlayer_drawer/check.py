@@ -167,11 +167,11 @@ def _witness(geometry, first, free, P):
                     wb = replace(w, base=base)
                     for arm in ARMS:
                         for T in grasps:
-                            v = geometry.ik(wb.with_gripper(arm, "open"), arm, T, rng, movables=True, ignore=("inner",),
-                                            attempts=3)
+                            wo = wb.with_gripper(arm, geometry.opening("inner", np.linalg.inv(T) @ Pd))
+                            v = geometry.ik(wo, arm, T, rng, movables=True, ignore=("inner",), attempts=3)
                             if v is None:
                                 continue
-                            pre = geometry.ik(wb.with_gripper(arm, "open"), arm, trans(0, 0, APPROACH) @ T, rng,
+                            pre = geometry.ik(wo, arm, trans(0, 0, APPROACH) @ T, rng,
                                               movables=True, seed=v, attempts=3)
                             if pre is not None:
                                 return (float(d), base), n

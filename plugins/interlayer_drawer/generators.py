@@ -142,8 +142,8 @@ def _reach_riders(geometry, world, base, path, rng) -> int:
         for o in riders:
             P0 = body.carry(world.objects[o], DRAWER_LINK, d0, body.zero())
             grasps = exposed(body, d, P0, pad=geometry.padding, yaws=(0.0, math.pi / 2))
-            if not any(geometry.ik(w.with_gripper(a, "open"), a, T, rng, ignore=(o,), attempts=2) is not None
-                       for T in grasps for a in ARMS):
+            if not any(geometry.ik(w.with_gripper(a, geometry.opening(o, np.linalg.inv(T) @ w.objects[o])), a, T, rng,
+                                   ignore=(o,), attempts=2) is not None for T in grasps for a in ARMS):
                 ok = False
                 break
         n += ok

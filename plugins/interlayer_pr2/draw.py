@@ -148,6 +148,8 @@ class _State:
                     q = r.group(f"{arm}_gripper").set(q, [self.opening[arm]])
                 elif g == "open":
                     q = r.open_gripper(q, arm)
+                elif isinstance(g, (list, tuple)) and g[0] == "open":  # opened as wide as a grasp needs
+                    q = r.set_gripper_opening(q, arm, float(g[1]))
                 elif isinstance(g, (int, float)):  # closed around a handle
                     q = r.set_gripper_opening(q, arm, float(g))
                 elif arm in self.held:
@@ -457,13 +459,14 @@ def animation_frames(geometry, scene, trajectory) -> list:
                     g = robot.group(f"{arm}_gripper")
                     a0 = float(g.get(state.q())[0])
                     width = seg.get("width")
-                    a1 = float(g.upper[0] if cmd == "open" else g.lower[0] if width is None
+                    a1 = float((g.upper[0] if cmd == "open" else g.lower[0]) if width is None
                                else g.get(robot.set_gripper_opening(state.q(), arm, float(width)))[0])
                     for k in range(1, GRIPPER_FRAMES + 1):
                         state.opening[arm] = a0 + (a1 - a0) * k / GRIPPER_FRAMES
                         frames.append(frame(i))
                     state.opening.pop(arm, None)
-                    state.grippers[arm] = "open" if cmd == "open" else "closed" if width is None else float(width)
+                    state.grippers[arm] = (("open" if width is None else ("open", float(width))) if cmd == "open"
+                                           else "closed" if width is None else float(width))
                 elif kind == "grasp":
                     arm, obj = seg.get("arm"), seg.get("object")
                     state.riders.pop(obj, None)
@@ -509,7 +512,7 @@ def animation_frames(geometry, scene, trajectory) -> list:
                     state.held.pop(arm, None)
                     if P is not None:
                         state.objects[obj] = P
-                    state.grippers[arm] = "open"
+                    state.grippers[arm] = "open" if seg.get("width") is None else ("open", float(seg["width"]))
                     frames += [frame(i)] * PAUSE
                 elif kind == "handover":  # one hand closes on the object, the other lets go
                     src, dst = seg.get("from"), seg.get("to")

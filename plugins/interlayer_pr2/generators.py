@@ -13,13 +13,14 @@ All are finite and seeded by ``rng``; they only check static geometry (IK, fixed
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
 from interlayer.refine import Candidate, Infeasible, stable_seed
 
 from .scene import REST_GAP, table_top
-from .world import LIFT, PRE_GRASP, pose4, rz, trans, wrap
+from .world import LIFT, OPEN_CLEARANCE, PRE_GRASP, pose4, rz, trans, wrap
 
 LINE_STEP = 0.05  # m between IK waypoints of straight-line approaches
 GRASP_CLEARANCE = 0.001  # the gripper must open at least this much wider than the object
@@ -84,28 +85,75 @@ def check_graspable(problem, name):
     return found
 
 
-def _waypoints(geometry, world, arm, T, kind, rng, ignore, attempts=10):
-    """(approach, raise) for tool pose T: ``approach`` is a list of IK solutions along the straight
-    line from the pre-grasp (PRE_GRASP behind T along the tool x axis) to T, each seeded by the next
-    one; ``raise`` lifts the grasp by LIFT, then withdraws it by PRE_GRASP (back along the approach
-    for side grasps, further up for top grasps), out of shelves and cubbies. None if IK fails, the
-    joint path strays, or a piece of it hits a fixed obstacle. ``attempts``: IK seeds for the grasp."""
-    grasp = geometry.ik(world, arm, T, rng, ignore=ignore, gripper="open", attempts=attempts)
+def check_hand_fits(problem, world, obj):
+    """Raise Infeasible when the goal needs ``obj`` moved but every grasp of it where it stands puts the
+    hand, opened only as wide as the grasp needs, into a fixed obstacle (whatever the arm and base do:
+    fixed obstacles never move). Boxes only (their grasps are finitely many), objects not riding on an
+    articulated body; called when a pick generator found nothing, to say why."""
+    from interlayer import logic
+
+    geometry = problem.geometry
+    o = geometry.specs[obj]
+    needed = any(obj in p.args and logic.ground_atom(p, {}) not in problem.init
+                 for p, positive in logic.atoms_with_polarity(logic.parse(problem.goal)) if positive)
+    if o.shape != "box" or not needed or obj in world.riders or world.holder(obj) is not None:
+        return
+    rng = np.random.default_rng(0)
+    P = world.objects[obj]
+    poses = {}
+    for heading in np.linspace(-math.pi, math.pi, 8, endpoint=False):
+        for kind, T in grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng, n_side=1):
+            poses[tuple(np.round(T[:3, :4].ravel(), 6))] = T
+    if not poses:
+        return  # check_graspable names the width
+    ignore = tuple(geometry.fixed) + tuple(world.objects)
+    blockers = set()
+    for T in poses.values():
+        # a base 0.6 m behind the grasp, facing along the approach (a top grasp: from where the robot is)
+        yaw = _yaw(T) if abs(T[2, 0]) < 0.7 else _bearing(world.base, P[0, 3], P[1, 3])
+        w = replace(world, held={}, base=(float(T[0, 3] - 0.6 * math.cos(yaw)), float(T[1, 3] - 0.6 * math.sin(yaw)), yaw))
+        opened = geometry.opening(obj, np.linalg.inv(T) @ P)
+        found = ((a, geometry.ik(w, a, T, rng, ignore=ignore, gripper=opened)) for a in ("left", "right"))
+        arm, v = next(((a, v) for a, v in found if v is not None), (None, None))
+        if arm is None:
+            return  # not reached even with nothing in the way: no proof
+        q = geometry.sync(w.with_arm(arm, v).with_gripper(arm, opened))
+        hand = f"{arm[0]}_gripper_"
+        hits = {b for a, b in geometry.cw.collision_pairs(q, movables=False) if a.startswith(hand) and b in geometry.fixed}
+        if not hits:
+            return
+        blockers |= hits
+    padded = f"; planning keeps {geometry.padding * 100:.1f} cm from fixed obstacles" if geometry.padding else ""
+    raise Infeasible(f"every grasp of {obj} that fits the gripper puts the PR2's fingers into {', '.join(sorted(blockers))} "
+                     f"where {obj} stands (the gripper opened only {OPEN_CLEARANCE * 100:.0f} cm wider than {obj}{padded}), "
+                     f"and the goal needs {obj} moved")
+
+
+def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10):
+    """(approach, raise) for grasping ``obj`` at tool pose T: ``approach`` is a list of IK solutions
+    along the straight line from the pre-grasp (PRE_GRASP behind T along the tool x axis) to T, each
+    seeded by the next one; ``raise`` lifts the grasp by LIFT, then withdraws it by PRE_GRASP (back
+    along the approach for side grasps, further up for top grasps), out of shelves and cubbies. None if
+    IK fails, the joint path strays, or a piece of it hits a fixed obstacle (the gripper opened as the
+    grasp needs). ``attempts``: IK seeds for the grasp."""
+    ignore = (obj,)
+    opened = geometry.opening(obj, np.linalg.inv(T) @ world.objects[obj])
+    grasp = geometry.ik(world, arm, T, rng, ignore=ignore, gripper=opened, attempts=attempts)
     if grasp is None:
         return None
-    line = _line(geometry, world, arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, grasp, rng, ignore, "open")
-    if line is None or not geometry.static_path_ok(world.with_gripper(arm, "open"), arm, line, ignore):
+    line = _line(geometry, world, arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, grasp, rng, ignore, opened)
+    if line is None or not geometry.static_path_ok(world.with_gripper(arm, opened), arm, line, ignore):
         return None
-    up = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, grasp, rng, ignore, "open")
+    up = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, grasp, rng, ignore, opened)
     if up is None:
         return None
     U = trans(0, 0, LIFT) @ T
     back_at = (lambda d: trans(0, 0, d) @ U) if kind == "top" else (lambda d: U @ trans(-d, 0, 0))
-    back = _line(geometry, world, arm, U, back_at, PRE_GRASP, up[-1], rng, ignore, "open")
+    back = _line(geometry, world, arm, U, back_at, PRE_GRASP, up[-1], rng, ignore, opened)
     if back is None:
         return None
     lift = up + back[1:]
-    if not geometry.static_path_ok(world.with_gripper(arm, "open"), arm, lift, ignore):
+    if not geometry.static_path_ok(world.with_gripper(arm, opened), arm, lift, ignore):
         return None
     return tuple(reversed(line)), tuple(lift[1:])
 
@@ -144,7 +192,7 @@ def pick(problem, step, world, rng, limit: int = 6, grasps=None):
         yield Candidate(wps, {step.args[3]: T.tolist()}, f"{kind} grasp, tool yaw {math.degrees(_yaw(T)):.0f} deg")
     offered = grasps(world, heading, rng) if grasps else grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng)
     for kind, T in offered:
-        wps = _waypoints(geometry, world, arm, T, kind, rng, ignore=(obj,))
+        wps = _waypoints(geometry, world, arm, T, kind, rng, obj)
         if wps is None:
             continue
         n += 1
@@ -174,11 +222,16 @@ def move_base(problem, step, world, rng, limit: int = 6, tries: int = 60, grasps
         yield from _bases_for_putdown(problem, world, args[0], args[1], args[2], to, rng, limit, tries)
 
 
-def _base_free(geometry, world, base) -> bool:
-    from dataclasses import replace
+def _base_free(geometry, world, base, tuck=None) -> bool:
+    """The robot at ``base`` clear of fixed obstacles; with ``tuck`` (an arm putting something down), also
+    with that arm tucked and empty, as the put-down leaves it: the tucked elbow sticks out sideways."""
+    from interlayer_pinocchio import TUCKED_ARMS
 
     w = replace(world, base=tuple(base))
     if not geometry.base_space.within_bounds(base):
+        return False
+    if tuck is not None and geometry.in_collision(replace(w, held={a: h for a, h in w.held.items() if a != tuck})
+                                                  .with_arm(tuck, TUCKED_ARMS[tuck]), movables=False):
         return False
     return not geometry.in_collision(w, movables=False)
 
@@ -205,8 +258,6 @@ def _free_bases(geometry, world, x, y, rng, tries):
 
 
 def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=None):
-    from dataclasses import replace
-
     geometry = problem.geometry
     if world.holder(obj) is not None or world.held.get(arm):
         return
@@ -225,7 +276,7 @@ def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=No
         heading = _bearing(base, x, y)
         for kind, T in (grasps(w, heading, rng) if grasps else grasp_poses(geometry, obj, P, heading, kinds, rng, n_side=2)):
             # few IK seeds: most grasps found come from the first, and another base is cheaper than more seeds
-            wps = _waypoints(geometry, w, arm, T, kind, rng, ignore=(obj,), attempts=3)
+            wps = _waypoints(geometry, w, arm, T, kind, rng, obj, attempts=3)
             if wps is not None:
                 n += 1
                 # the grasp found here travels with the world to pick, which offers it first
@@ -234,6 +285,8 @@ def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=No
                 if n >= limit:
                     return
                 break
+    if not n:
+        check_hand_fits(problem, world, obj)
 
 
 def _heading_of_tool(T):
@@ -267,8 +320,6 @@ def _spots(problem, world, obj, loc, rng, tries):
 
 
 def _bases_for_putdown(problem, world, obj, arm, loc, ref, rng, limit, tries):
-    from dataclasses import replace
-
     geometry = problem.geometry
     if world.holder(obj) != arm:
         return
@@ -278,7 +329,7 @@ def _bases_for_putdown(problem, world, obj, arm, loc, ref, rng, limit, tries):
     for x, y, z in _spots(problem, world, obj, loc, rng, tries):
         for _ in range(4):
             base = _annulus(rng, x, y)
-            if not _base_free(geometry, world, base):
+            if not _base_free(geometry, world, base, tuck=arm):
                 continue
             P, T = _putdown(G, x, y, z, _bearing(base, x, y) + rng.uniform(-0.3, 0.3))
             w = replace(world, base=base)
@@ -330,7 +381,8 @@ def place(problem, step, world, rng, variants: int = 4):
             continue
         lower = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, put, rng)
         back_at = (lambda d: trans(0, 0, d) @ T) if top else (lambda d: T @ trans(-d, 0, 0))
-        back = _line(geometry, world.with_gripper(arm, "open"), arm, T, back_at, PRE_GRASP, put, rng, gripper="open")
+        opened = geometry.opening(obj, G)
+        back = _line(geometry, world.with_gripper(arm, opened), arm, T, back_at, PRE_GRASP, put, rng, gripper=opened)
         if lower is None or back is None:
             continue
         yield Candidate((tuple(reversed(lower)), tuple(back[1:])), {step.args[4]: T.tolist(), "object_pose": P.tolist()},

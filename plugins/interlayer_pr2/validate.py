@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 
 from .scene import REST_GAP, table_top
-from .world import RES_ARM, RES_BASE
+from .world import RES_ARM, RES_BASE, is_open
 
 FINE_ARM, FINE_BASE = RES_ARM / 5, RES_BASE / 5
 POS_TOL, ROT_TOL = 2e-3, math.radians(2)
@@ -57,7 +57,10 @@ def validate_trajectory(geometry, plan, trajectory, rules=None) -> list[str]:
             elif kind == "gripper":
                 arm = seg["arm"]
                 if seg["command"] == "open":
-                    world = world.with_gripper(arm, "open")
+                    opened, why = _opening(robot, seg, at)
+                    if why:
+                        return errors + [why]
+                    world = world.with_gripper(arm, opened)
                 else:
                     if arm in world.held:
                         return errors + [f"{at}: closes the {arm} gripper while it holds {world.held[arm][0]}"]
@@ -81,7 +84,7 @@ def validate_trajectory(geometry, plan, trajectory, rules=None) -> list[str]:
                     return errors + [f"{at}: grasps {obj} while the {arm} arm holds {world.held[arm][0]}"]
                 if obj not in world.objects:
                     return errors + [f"{at}: grasps {obj}, which is not resting anywhere (held?)"]
-                if world.grippers[arm] != "open":
+                if not is_open(world.grippers[arm]):
                     return errors + [f"{at}: grasps {obj} with a closed gripper"]
                 q = geometry.config(world)
                 tool = robot.tool_pose(q, arm)
@@ -96,6 +99,9 @@ def validate_trajectory(geometry, plan, trajectory, rules=None) -> list[str]:
                 width = geometry.grasp_width(obj, G)
                 if width > robot.max_gripper_opening:
                     return errors + [f"{at}: {obj} is {width:.3f} m across the fingers, wider than the gripper opens"]
+                if width > _width_of(robot, world.grippers[arm]):
+                    return errors + [f"{at}: {obj} is {width:.3f} m across the fingers, wider than the {arm} gripper was "
+                                     f"opened ({_width_of(robot, world.grippers[arm]):.3f} m)"]
                 objects = {n: v for n, v in world.objects.items() if n != obj}
                 world = replace(world, objects=objects, held={**world.held, arm: (obj, G)},
                                 grippers={**world.grippers, arm: "closed"},
@@ -112,8 +118,14 @@ def validate_trajectory(geometry, plan, trajectory, rules=None) -> list[str]:
                 why = rule("rests")(geometry, world, obj, P) if rule("rests") else _on_table(geometry, obj, P)
                 if why:
                     return errors + [f"{at}: {obj} is released at {np.round(P[:3, 3], 3).tolist()}, {why}"]
+                opened, why = _opening(robot, seg, at)
+                width = geometry.grasp_width(obj, world.held[arm][1])
+                if why or width > _width_of(robot, opened):
+                    return errors + [why or f"{at}: the {arm} gripper opens to {_width_of(robot, opened):.3f} m, "
+                                            f"narrower than {obj} across the fingers ({width:.3f} m): it does not let go"]
                 held = {a: v for a, v in world.held.items() if a != arm}  # release = open the gripper + detach
-                world = replace(world, objects={**world.objects, obj: P}, held=held, grippers={**world.grippers, arm: "open"})
+                world = replace(world, objects={**world.objects, obj: P}, held=held,
+                                grippers={**world.grippers, arm: opened})
                 if geometry.in_collision(world):
                     pairs = geometry.cw.collision_pairs(geometry.sync(world))
                     return errors + [f"{at}: {obj} released into a collision: {_pairs(pairs)}"]
@@ -125,6 +137,21 @@ def validate_trajectory(geometry, plan, trajectory, rules=None) -> list[str]:
                 return errors + [f"{at}: unknown segment kind {kind!r}"]
     errors += rule("goal")(geometry, world) if rule("goal") else _check_goal(geometry, world)
     return errors
+
+
+def _opening(robot, seg, at):
+    """(gripper state, '') of an open or release event: fully open, or open to its "width"; or (None, why)."""
+    if "width" not in seg:
+        return "open", ""
+    width = seg["width"]
+    if not isinstance(width, (int, float)) or not 0 < width <= robot.max_gripper_opening + 1e-9:
+        return None, f"{at}: gripper width {width!r} is not a number of metres the gripper can open to"
+    return ("open", float(width)), ""
+
+
+def _width_of(robot, state) -> float:
+    """How far apart the pads of an open gripper are."""
+    return robot.max_gripper_opening if state == "open" else float(state[1])
 
 
 def _on_table(geometry, obj, P) -> str:

@@ -33,6 +33,7 @@ PADDING = 0.015
 RES_BASE = 0.01  # m / rad between collision checks when planning the base
 PRE_GRASP = 0.20  # back-off of the pre-grasp along the tool x axis (approach and retreat length)
 LIFT = 0.05  # raise after grasping / height above the put-down spot
+OPEN_CLEARANCE = 0.01  # m: a gripper about to grasp or let go opens this much wider than the object (5 mm a side)
 FOLLOWS = 1e3  # the velocity / acceleration "limit" of a joint driven by the hand (a drawer's slide)
 # First IK seed for reaching forward at table height (elbow up, measured typical solutions)
 REACH_SEED = {"left": (-0.4, -0.25, 3.3, -1.53, 2.75, -1.2, 0.0), "right": (0.4, -0.25, -3.3, -1.53, -2.75, -1.2, 0.0)}
@@ -59,11 +60,16 @@ def wrap(a):
     return (a + math.pi) % (2 * math.pi) - math.pi
 
 
+def is_open(state) -> bool:
+    """A gripper state open for grasping or letting go: "open" (fully) or ("open", width in metres)."""
+    return state == "open" or (isinstance(state, (tuple, list)) and len(state) == 2 and state[0] == "open")
+
+
 @dataclass(frozen=True)
 class World:
     base: tuple
     arms: dict = field(hash=False)  # arm -> 7 floats
-    grippers: dict = field(hash=False)  # arm -> "open" | "closed"
+    grippers: dict = field(hash=False)  # arm -> "open" (fully) | ("open", width) | "closed" | width (closed on a handle)
     objects: dict = field(hash=False)  # name -> 4x4 pose of objects that are not held
     held: dict = field(hash=False)  # arm -> (object, tool_T_object 4x4)
     # what the last move_base chose its base pose for: object -> put-down pose (4x4), or
@@ -173,8 +179,11 @@ class PR2Geometry:
         q = r.default_q(world.base)
         for arm in ARMS:
             q = r.set(q, f"{arm}_arm", world.arms[arm])
-            if world.grippers[arm] == "open":
+            g = world.grippers[arm]
+            if g == "open":
                 q = r.open_gripper(q, arm)
+            elif is_open(g):
+                q = r.set_gripper_opening(q, arm, g[1])
             elif not isinstance(world.grippers[arm], str):  # closed around something that is no object (a handle)
                 q = r.set_gripper_opening(q, arm, float(world.grippers[arm]))
             elif arm in world.held:
@@ -190,6 +199,18 @@ class PR2Geometry:
             return 2 * o.size[0]
         y_in_obj = np.linalg.inv(G)[:3, :3] @ np.array([0.0, 1.0, 0.0])
         return float(sum(abs(y_in_obj[i]) * o.size[i] for i in range(3)))
+
+    def opening(self, name, G):
+        """The gripper state for grasping or letting go of ``name`` with grasp G (tool_T_object): open as
+        wide as the object is across the fingers plus OPEN_CLEARANCE (fully, if that is wider), so that
+        the fingers fit beside it where a fully opened hand would not."""
+        width = self.grasp_width(name, G) + OPEN_CLEARANCE
+        return "open" if width >= self.robot.max_gripper_opening else ("open", width)
+
+    def grasp_opening(self, world, arm, name, grasp):
+        """The opening for grasping ``name`` (resting in ``world``) with the arm at vector ``grasp``."""
+        T = self.robot.tool_pose(self.config(world.with_arm(arm, grasp)), arm)
+        return self.opening(name, np.linalg.inv(T) @ world.objects[name])
 
     def object_pose(self, world: World, name, q=None) -> np.ndarray:
         arm = world.holder(name)
@@ -330,7 +351,9 @@ class PR2Geometry:
         inner = type(cand)(tuple(cand.waypoints[1:]), cand.values, cand.label)
         w = replace(world, base=base)
         if step.action == "pick":  # a blocked approach fails the step whatever the motions: check it first (cheap)
-            blockers = self._movables_on_line(w.with_gripper(step.args[1], "open"), step.args[1], inner.waypoints[0], acc)
+            obj, arm, approach = step.args[0], step.args[1], inner.waypoints[0]
+            opened = self.grasp_opening(w, arm, obj, approach[-1])
+            blockers = self._movables_on_line(w.with_gripper(arm, opened), arm, approach, acc)
             blockers.discard(step.args[0])
             if blockers:
                 return StepOutcome(False, failure=Failure("obstruction", tuple(sorted(blockers)),
@@ -504,7 +527,7 @@ class PR2Geometry:
                          _holding(w), w, acc)
         if not res.ok:
             return _failure(res, "pick transit", obj)
-        w, stuck = self.set_gripper(w.with_arm(arm, pre), arm, "open", segs,
+        w, stuck = self.set_gripper(w.with_arm(arm, pre), arm, self.grasp_opening(w, arm, obj, grasp), segs,
                                     "opening the gripper at the pre-grasp", obj)
         if stuck:
             return stuck
@@ -559,12 +582,13 @@ class PR2Geometry:
             return _failure(res, "place lower")
         w = w.with_arm(arm, put)
         P = self.object_pose(w, obj)
+        opened = self.opening(*w.held[arm])
         held = {a: v for a, v in w.held.items() if a != arm}
-        w = replace(w, objects={**w.objects, obj: P}, held=held, grippers={**w.grippers, arm: "open"},
+        w = replace(w, objects={**w.objects, obj: P}, held=held, grippers={**w.grippers, arm: opened},
                     tloc={k: v for k, v in w.tloc.items() if k != obj})
         if self.in_collision(w):
             return self._stuck(w, "opening the gripper at the put-down pose")
-        segs.append({"kind": "release", "arm": arm, "object": obj, "pose": P.tolist()})
+        segs.append({"kind": "release", "arm": arm, "object": obj, "pose": P.tolist(), **_width(opened)})
         return self.retreat_and_tuck(motion, w, arm, group, (put, *back), "place", segs, acc)
 
     def retreat(self, w, arm, path, label, segs, acc):
@@ -658,13 +682,13 @@ class PR2Geometry:
         return StepOutcome(True, last, segs)
 
     def set_gripper(self, w, arm, state, segs, what, exclude=None):
-        """The arm's gripper set to ``state`` ("open", "closed" or a width in metres) where it is: the new
-        world and None, or the failure if the fingers then collide (``what`` names the moment)."""
+        """The arm's gripper set to ``state`` ("open", ("open", width), "closed" or a width in metres: closed
+        on a handle) where it is: the new world and None, or the failure if the fingers then collide
+        (``what`` names the moment). The event records the width unless fully open or closed."""
         w = w.with_gripper(arm, state)
         if self.in_collision(w):
             return w, self._stuck(w, what, exclude)
-        seg = {"kind": "gripper", "arm": arm, "command": "open" if state == "open" else "close"}
-        segs.append(seg if isinstance(state, str) else {**seg, "width": state})
+        segs.append({"kind": "gripper", "arm": arm, "command": "open" if is_open(state) else "close", **_width(state)})
         return w, None
 
     def _stuck(self, w, what, exclude=None):
@@ -688,6 +712,13 @@ class PR2Geometry:
         from .validate import validate_trajectory
 
         return validate_trajectory(type(self)(self.layout, padding=0.0), plan, trajectory)
+
+
+def _width(state) -> dict:
+    """The "width" field of a gripper event for ``state``: none when fully open or closed."""
+    if isinstance(state, str):
+        return {}
+    return {"width": float(state[1] if is_open(state) else state)}
 
 
 def _holding(world):
