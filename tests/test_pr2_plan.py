@@ -143,3 +143,98 @@ def test_move_base_samples_afresh_in_another_world():
         cand = next(iter(move_base(run.problem, step, replace(world, base=base), np.random.default_rng(7))))
         firsts.append(cand.waypoints[0])
     assert firsts[0] != firsts[1]
+
+
+def test_a_grasp_whose_hand_hits_a_panel_is_rejected_without_ik():
+    """The hand alone at the tool pose is checked first: inside a cubby panel no IK is tried; at the
+    target in the cubby the hand is free and IK runs as before."""
+    import numpy as np
+
+    from interlayer.api import prepare
+    from interlayer_pr2.generators import _waypoints
+    from interlayer_pr2.world import pose4
+
+    run = prepare(EXAMPLE, ["planner.seed=0"])
+    geo = run.problem.geometry
+    world = geo.initial_world()
+    in_panel = pose4(0.83, 0.13, 0.87, 0.0)  # the tool in panel_left
+    at_target = world.objects["target"]
+    open_hand = world.with_gripper("left", "open")
+    assert not geo.hand_free(open_hand, "left", in_panel, ignore=("target",))
+    assert geo.hand_free(open_hand, "left", at_target, ignore=("target",))
+    assert not geo.hand_free(open_hand, "left", at_target, movables=True)  # the target itself is in the hand
+    calls = []
+
+    class Counting:  # the geometry, counting its IK calls
+        def __getattr__(self, name):
+            return getattr(geo, name)
+
+        def ik(self, *a, **k):
+            calls.append(1)
+            return geo.ik(*a, **k)
+
+    rng = np.random.default_rng(0)
+    assert _waypoints(Counting(), world, "left", in_panel, "side", rng, "target", hand_check=True) is None
+    assert calls == []
+    _waypoints(Counting(), world, "left", in_panel, "side", rng, "target")
+    assert calls  # without the check, IK is tried
+
+
+def test_a_base_only_move_keeps_the_synced_configuration_exact():
+    """sync() reuses the last configuration when only the base moved; it must equal config()."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from interlayer.api import prepare
+
+    geo = prepare(EXAMPLE, ["planner.seed=0"]).problem.geometry
+    world = geo.initial_world().with_gripper("left", "open")
+    geo.sync(world)
+    for base in ((0.1, 0.2, 0.3), (-0.5, 1.0, -3.0)):
+        moved = replace(world, base=base)
+        assert np.array_equal(geo.sync(moved), geo.config(moved))
+
+
+def test_the_cubby_transit_goes_through_the_staging_point():
+    """With the layout's "stage", a pick transit into the cubby searches to a point behind the
+    pre-grasp and ends with the straight tool line from there; without it, it searches to the pre-grasp."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from interlayer.api import prepare
+    from interlayer.domain import GroundStep
+    from interlayer.motion import InterpolatingPlanner
+    from interlayer_pr2.generators import move_base
+    from interlayer_pr2.world import trans
+
+    run = prepare(EXAMPLE, ["planner.seed=0"])
+    geo = run.problem.geometry
+    world = geo.initial_world()
+    moved = world.objects["blocker"].copy()
+    moved[1, 3] += 0.45  # the blocker put aside on the table
+    world = replace(world, objects={**world.objects, "blocker": moved})
+    cand = next(iter(move_base(run.problem, GroundStep("move_base", ("bpfg_target_left",)), world,
+                               np.random.default_rng(0))))
+    world = replace(world, base=cand.waypoints[0])
+    pre = np.asarray(cand.values["grasp"][1][2][0][0], float)  # (kind, T, (approach, lift)): the pre-grasp
+    goals = []
+
+    class Spy(InterpolatingPlanner):
+        def plan(self, query, time_limit=None, straight=True):
+            goals.append(np.asarray(query.goal, float))
+            return super().plan(query, time_limit, straight)
+
+    start = np.asarray(world.arms["left"], float)
+    for stage in (0.05, 0.0):
+        goals.clear()
+        geo.layout.extra["stage"] = stage
+        geo._transit(Spy(), world, "left", start, pre, "pick transit", [], [0.0], staged="goal")
+        assert goals, "the transit asked the planner nothing"
+        if not stage:
+            assert np.allclose(goals[0], pre)
+            continue
+        T = geo.robot.tool_pose(geo.sync(world.with_arm("left", goals[0])), "left")
+        P = geo.robot.tool_pose(geo.sync(world.with_arm("left", pre)), "left")
+        assert np.allclose(P @ trans(-stage, 0, 0), T, atol=3e-3)  # 5 cm behind, along the tool's x axis

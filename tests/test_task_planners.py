@@ -69,3 +69,37 @@ def test_unified_planning_loads_without_configspace_and_scipy_stats():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["False", "False", "True", "ConfigSpace.configuration_space"]
+
+
+def test_a_settled_problem_computes_its_kind_once_and_hands_out_copies(monkeypatch):
+    """UP recomputes Problem.kind at every access; a problem we no longer change computes it once,
+    and each caller gets its own copy (UP's validator edits the kind it is given)."""
+    from unified_planning.model import Problem as UPProblem
+
+    from interlayer_up.convert import UPProblemBuilder
+    from interlayer_up.planner import _quiet_environment, _settled
+
+    _quiet_environment()
+    model = corridor()
+    problem = _settled(UPProblemBuilder(model).problem_for(model.init))
+    calls = []
+    factory = UPProblem._kind_factory
+    monkeypatch.setattr(UPProblem, "_kind_factory", lambda self: calls.append(1) or factory(self))
+    first = problem.kind
+    first.unset_problem_type("SIMPLE_NUMERIC_PLANNING")  # whatever a caller does to its copy
+    assert problem.kind == UPProblem.kind.fget(problem)
+    assert len(calls) == 2  # one for the settled problem, one for the comparison
+
+
+def test_fast_downward_reads_its_plans_with_one_reader(host, monkeypatch):
+    """Building a PDDLReader builds a pyparsing grammar (20-40 ms); reading a plan needs none of it."""
+    from unified_planning.io import PDDLReader
+
+    made = []
+    init = PDDLReader.__init__
+    monkeypatch.setattr(PDDLReader, "__init__", lambda self, *a, **k: made.append(1) or init(self, *a, **k))
+    model = corridor()
+    planner = host["task_planners"].get("fast-downward").factory({})
+    for _ in range(3):
+        assert planner.plan(model, model.init, 30).status == "solved"
+    assert len(made) <= 1

@@ -64,13 +64,23 @@ def as_matrix(pose) -> np.ndarray:
     return mat
 
 
+_EYE3 = np.eye(3)
+_ORTHO_TOL = 1e-6 + 1e-5 * _EYE3  # np.allclose's atol + rtol * |expected|
+
+
+def _det3(m) -> float:
+    (a, b, c), (d, e, f), (g, h, i) = m
+    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+
+
 def as_se3(pose) -> pin.SE3:
     """``pin.SE3`` from a 4x4 array-like (or an SE3, copied); rejects non-rigid matrices."""
     if isinstance(pose, pin.SE3):
         return pin.SE3(pose)
     mat = as_matrix(pose)
     rot = mat[:3, :3]
-    if not np.allclose(rot.T @ rot, np.eye(3), atol=1e-6) or np.linalg.det(rot) < 0:
+    # np.allclose(rot.T @ rot, I, atol=1e-6) and det >= 0, spelled out: this runs on every object pose update
+    if not (np.abs(rot.T @ rot - _EYE3) <= _ORTHO_TOL).all() or _det3(rot.tolist()) < 0:
         raise ValueError("pose rotation is not a rotation matrix")
     return pin.SE3(np.ascontiguousarray(rot), mat[:3, 3].copy())
 

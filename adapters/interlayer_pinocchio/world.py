@@ -123,6 +123,7 @@ class CollisionWorld:
         self._slots: list[_Slot] = []  # most recently used first
         self._request = coal.CollisionRequest()
         self._local_boxes = {}  # id(geometry) -> (its local AABB's corners, geometry)
+        self._hands = {}  # (arm, finger angle) -> [(hand geometry, its pose in the tool frame)]
         self._tool_joint = {arm: robot.model.frames[robot.model.getFrameId(robot.tool_frame(arm))].parentJoint
                             for arm in ARMS}
         names = [g.name for g in robot.collision_model.geometryObjects]
@@ -403,6 +404,58 @@ class CollisionWorld:
                 geom.computeLocalAABB()
                 cache[gid] = geom
         return cache
+
+    def hand_collides(self, q, arm: str, tool_pose, ignore: Iterable[str] = frozenset(),
+                      movables: bool = False) -> bool:
+        """Whether ``arm``'s hand (palm and fingers, opened as in ``q``) with its tool frame at ``tool_pose``
+        touches an environment object that is not held or ignored (movable ones only if ``movables``).
+        No IK: any arm configuration that reaches that tool pose puts the hand there, so a grasp whose
+        hand collides needs no IK to be rejected."""
+        if self._needs_build:
+            self._build()
+        T = np.asarray(tool_pose, dtype=float)
+        skip = frozenset(ignore)
+        others = [o for o in self._objects.values()
+                  if o.held_by is None and o.name not in skip and (movables or not o.movable)]
+        if not others:
+            return False
+        geoms, rels, centres, radii = self._hand(q, arm)
+        mine = centres @ T[:3, :3].T + T[:3, 3]
+        theirs = np.array([o.pose.act(o.geometry.aabb_center) for o in others])
+        reach = radii[:, None] + np.array([o.geometry.aabb_radius for o in others])[None, :]
+        d = mine[:, None, :] - theirs[None, :, :]
+        close = np.einsum("ijk,ijk->ij", d, d) <= reach * reach  # bounding spheres: most pairs are far apart
+        if not close.any():
+            return False
+        tool = pin.SE3(np.ascontiguousarray(T[:3, :3]), T[:3, 3].copy())  # a tool pose: rigid by construction
+        for i, j in zip(*np.nonzero(close)):
+            o = others[j]
+            if coal.collide(geoms[i], _transform(tool * rels[i]), o.geometry, _transform(o.pose), self._request,
+                            coal.CollisionResult()):
+                return True
+        return False
+
+    def _hand(self, q, arm: str) -> tuple:
+        """The hand's geometries, their poses in the tool frame, their bounding-sphere centres in the
+        tool frame and radii, for the finger angles of ``q``."""
+        fingers = self.robot.group(f"{arm}_gripper").get(q)
+        key = (arm, tuple(np.round(fingers, 9)))
+        cache = self._hands
+        if key not in cache:
+            q = _as_q(q)
+            model, data = self._model, self._data
+            pin.forwardKinematics(model, data, q)
+            fid = model.getFrameId(self.robot.tool_frame(arm))
+            tool = pin.updateFramePlacement(model, data, fid)
+            gm = self.robot.collision_model
+            geoms = [go.geometry for go, hand in zip(gm.geometryObjects, self._gripper[arm]) if hand]
+            rels = [tool.actInv(data.oMi[go.parentJoint] * go.placement)
+                    for go, hand in zip(gm.geometryObjects, self._gripper[arm]) if hand]
+            for g in geoms:
+                g.computeLocalAABB()
+            cache[key] = (geoms, rels, np.array([r.act(g.aabb_center) for g, r in zip(geoms, rels)]),
+                          np.array([g.aabb_radius for g in geoms]))
+        return cache[key]
 
     def objects_overlap(self, name: str, pose, ignore: Iterable[str] = frozenset()) -> set[str]:
         """Objects (not held, not ignored) that object ``name`` placed at ``pose`` would touch."""

@@ -99,7 +99,7 @@ class UPTaskPlanner(TaskPlanner):
     def _plan(self, model, state, timeout):
         _quiet_environment()
         builder = self._builder(model)
-        problem = builder.problem_for(state)
+        problem = _settled(builder.problem_for(state))
         if self.pddl_dir is not None:
             _dump_pddl(problem, self.pddl_dir, self.calls)
         deadline = time.perf_counter() + timeout
@@ -132,7 +132,7 @@ class UPTaskPlanner(TaskPlanner):
         from unified_planning.plans import ActionInstance, SequentialPlan
 
         builder = self._builder(model)
-        problem = builder.problem_for(state)
+        problem = _settled(builder.problem_for(state))
         up_plan = SequentialPlan([ActionInstance(problem.action(s.action), [problem.object(o) for o in model.task_args(s)])
                                   for s in plan])
         return _up_validate(problem, up_plan)
@@ -154,9 +154,26 @@ def _dump_pddl(problem, folder, call: int) -> None:
 def _engine(name: str, params=None, checks: bool = False):
     """UP's engine ``name``, made as its factory would but without the factory's credits notice, which
     walks the whole call stack with source lines (20-50 ms for every engine made)."""
+    from unified_planning.engines.pddl_planner import PDDLPlanner
+
     engine = _quiet_environment().factory.engine(name)(**(params or {}))
     engine.error_on_failed_checks = checks  # the factory's setting: True only when it chose the engine
+    if isinstance(engine, PDDLPlanner):  # it builds a PDDLReader (a pyparsing grammar, 20-40 ms) per plan it reads
+        engine._plan_from_str = _read_plan
     return engine
+
+
+def _read_plan(problem, plan_str, get_item_named):
+    """What PDDLPlanner._plan_from_str does, with one reader per environment: reading a plan uses only
+    regular expressions, not the reader's grammar."""
+    return _plan_reader(problem.environment).parse_plan_string(problem, plan_str, get_item_named)
+
+
+@functools.cache
+def _plan_reader(env):
+    from unified_planning.io import PDDLReader
+
+    return PDDLReader(env)
 
 
 def _up_validate(problem, plan) -> str:
@@ -171,7 +188,7 @@ def _compile_for(engine, problem):
     from unified_planning.shortcuts import Compiler
 
     chain = []
-    kind = problem.kind  # computed from scratch at every access: 10-20 ms
+    kind = problem.kind
     for compilation, feature in ((CompilationKind.QUANTIFIERS_REMOVING, ("EXISTENTIAL_CONDITIONS", "UNIVERSAL_CONDITIONS", "FORALL_EFFECTS")),
                                  (CompilationKind.CONDITIONAL_EFFECTS_REMOVING, ("CONDITIONAL_EFFECTS",)),
                                  (CompilationKind.DISJUNCTIVE_CONDITIONS_REMOVING, ("DISJUNCTIVE_CONDITIONS",)),
@@ -182,21 +199,48 @@ def _compile_for(engine, problem):
             with Compiler(problem_kind=kind, compilation_kind=compilation) as compiler:
                 res = compiler.compile(problem, compilation)
             chain.append(res)
-            problem = res.problem
+            problem = _settled(res.problem)
             kind = problem.kind
     if not engine.supports(kind) and problem.quality_metrics:
         log.warning("the task planner '%s' ignores action costs: its plans may not be cheapest", engine.name)
         problem = problem.clone()
         problem.clear_quality_metrics()
+        problem = _settled(problem)
         kind = problem.kind
     return problem, chain, kind
 
 
 @functools.cache
-def _sparse_problem_class():
+def _settled_problem_class():
     from unified_planning.model import Problem
 
-    class SparseProblem(Problem):
+    class SettledProblem(Problem):
+        """A problem that is no longer changed: UP computes ``kind`` from scratch at every access (5-20
+        ms), and a validation or an engine call asks for it three or four times. Computed once here;
+        each access gets a copy, because UP's validator edits the kind it is given."""
+
+        @property
+        def kind(self):
+            cached = self.__dict__.get("_settled_kind")
+            if cached is None:
+                cached = self.__dict__["_settled_kind"] = Problem.kind.fget(self)
+            return cached.clone()
+
+    return SettledProblem
+
+
+def _settled(problem):
+    """``problem`` (our own clone, not changed from now on) with its kind computed once."""
+    from unified_planning.model import Problem
+
+    if type(problem) is Problem:
+        problem.__class__ = _settled_problem_class()
+    return problem
+
+
+@functools.cache
+def _sparse_problem_class():
+    class SparseProblem(_settled_problem_class()):
         """UP's PDDL writer asks ``initial_values`` for every grounding of every fluent just to write
         the true ones (seconds for big reference sets). All our fluents default to false, so the
         explicit (true) values are the whole initial state."""

@@ -31,8 +31,11 @@ def _approaches(geometry, pose, rng, per_pose=2):
     for d in APPROACH:
         d = d + rng.uniform(-0.02, 0.02)
         pre = _backoff(pose, d)
-        line_ok = all(geometry.static_free(_backoff(pose, t)) for t in np.arange(0.0, d, 0.02))
-        if line_ok and all(geometry.static_free((pre[0] + dx, pre[1] + dy, pre[2])) for dx in (-0.05, 0.05) for dy in (-0.05, 0.05)):
+        with geometry.stats.timer("collision_checking"):
+            free = all(geometry.static_free(_backoff(pose, t)) for t in np.arange(0.0, d, 0.02)) and \
+                all(geometry.static_free((pre[0] + dx, pre[1] + dy, pre[2]))
+                    for dx in (-0.05, 0.05) for dy in (-0.05, 0.05))
+        if free:
             out.append(pre)
             if len(out) == per_pose:
                 break
@@ -49,7 +52,9 @@ def pick(problem, step, world, rng):
     for k in sides:
         yaw = _wrap(bth + k * math.pi / 2)  # gripper x axis points into the face opposite this side
         grasp = (bx, by, yaw)
-        if not geometry.static_free(grasp):
+        with geometry.stats.timer("collision_checking"):
+            free = geometry.static_free(grasp)
+        if not free:
             continue
         for pre in _approaches(geometry, grasp, rng):
             found = True
@@ -76,10 +81,11 @@ def place(problem, step, world, rng, samples: int = 12):
             if abs(x - S_CENTRE[0]) < S_SIZE / 2 + margin and abs(y - S_CENTRE[1]) < S_SIZE / 2 + margin:
                 continue
         block_pose = (float(x), float(y), float(_wrap(rng.choice([0.0, math.pi / 2]) + rng.uniform(-0.1, 0.1))))
-        if not geometry.block_fits(world, block, block_pose, movables=region != "S"):
-            continue
         gripper = (block_pose[0], block_pose[1], _wrap(block_pose[2] - offset))
-        if not geometry.static_free(gripper):
+        with geometry.stats.timer("collision_checking"):
+            free = geometry.block_fits(world, block, block_pose, movables=region != "S") and \
+                geometry.static_free(gripper)
+        if not free:
             continue
         for pre in _approaches(geometry, gripper, rng, per_pose=1):
             n += 1

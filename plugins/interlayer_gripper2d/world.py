@@ -14,6 +14,7 @@ import numpy as np
 
 from interlayer.motion import ConfigSpace, InterpolatingPlanner, MotionQuery
 from interlayer.refine import Failure, StepOutcome
+from interlayer.trace import Stats
 from interlayer_coal.scene import Body, CollisionScene, Shape, planar
 
 BLOCK = 0.10  # block side
@@ -114,7 +115,7 @@ class Gripper2DGeometry:
         self.held_body = Body(block_shapes())
         self.approach = InterpolatingPlanner(name="interpolate")
         self.cartesian = None  # planner.cartesian, set by the run: the approach and retreat planner
-        self.stats = None
+        self.stats = Stats()  # the run's, set by it: the generators' collision checks are timed there
         self._synced = None
 
     # -- world and collision checks ---------------------------------------------------------

@@ -129,15 +129,21 @@ def check_hand_fits(problem, world, obj):
                      f"and the goal needs {obj} moved")
 
 
-def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10):
+def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10, hand_check=False):
     """(approach, raise) for grasping ``obj`` at tool pose T: ``approach`` is a list of IK solutions
     along the straight line from the pre-grasp (PRE_GRASP behind T along the tool x axis) to T, each
     seeded by the next one; ``raise`` lifts the grasp by LIFT, then withdraws it by PRE_GRASP (back
     along the approach for side grasps, further up for top grasps), out of shelves and cubbies. None if
     IK fails, the joint path strays, or a piece of it hits a fixed obstacle (the gripper opened as the
-    grasp needs). ``attempts``: IK seeds for the grasp."""
+    grasp needs). ``attempts``: IK seeds for the grasp. ``hand_check``: first reject, without IK, a grasp
+    or pre-grasp whose hand alone (opened as the grasp needs) touches a fixed obstacle."""
     ignore = (obj,)
     opened = geometry.opening(obj, np.linalg.inv(T) @ world.objects[obj])
+    if hand_check:
+        hand = world.with_gripper(arm, opened)
+        if not (geometry.hand_free(hand, arm, T, ignore) and
+                geometry.hand_free(hand, arm, T @ trans(-PRE_GRASP, 0, 0), ignore)):
+            return None
     grasp = geometry.ik(world, arm, T, rng, ignore=ignore, gripper=opened, attempts=attempts)
     if grasp is None:
         return None
@@ -192,7 +198,7 @@ def pick(problem, step, world, rng, limit: int = 6, grasps=None):
         yield Candidate(wps, {step.args[3]: T.tolist()}, f"{kind} grasp, tool yaw {math.degrees(_yaw(T)):.0f} deg")
     offered = grasps(world, heading, rng) if grasps else grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng)
     for kind, T in offered:
-        wps = _waypoints(geometry, world, arm, T, kind, rng, obj)
+        wps = _waypoints(geometry, world, arm, T, kind, rng, obj, hand_check=True)
         if wps is None:
             continue
         n += 1
@@ -276,7 +282,7 @@ def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=No
         heading = _bearing(base, x, y)
         for kind, T in (grasps(w, heading, rng) if grasps else grasp_poses(geometry, obj, P, heading, kinds, rng, n_side=2)):
             # few IK seeds: most grasps found come from the first, and another base is cheaper than more seeds
-            wps = _waypoints(geometry, w, arm, T, kind, rng, obj, attempts=3)
+            wps = _waypoints(geometry, w, arm, T, kind, rng, obj, attempts=3, hand_check=True)
             if wps is not None:
                 n += 1
                 # the grasp found here travels with the world to pick, which offers it first

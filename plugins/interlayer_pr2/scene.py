@@ -18,6 +18,9 @@ TABLE_SIZE = (0.5, 1.6)  # x depth, y width
 REST_GAP = 0.002
 BASE_START = (0.0, 0.0, 0.0)
 BASE_LIMITS = ((-1.0, 2.5), (-2.0, 2.0))
+# Arm transits to a grasp in the cubby's mouth (and the carry out of it) go through a point this far
+# further back along the tool's x axis: the sampling planner then searches in free space (see _transit).
+STAGE = 0.05
 
 
 @dataclass
@@ -115,4 +118,4 @@ def make_layout(seed: int, goal: str, grasps, target_radius: float, clutter: int
             break
         else:
             raise ValueError(f"no free spot on the table for clutter object {k + 1}")
-    return Layout(fixed, objects, regions, "target", goal, tuple(grasps))
+    return Layout(fixed, objects, regions, "target", goal, tuple(grasps), extra={"stage": STAGE})

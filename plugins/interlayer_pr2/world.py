@@ -178,7 +178,7 @@ class PR2Geometry:
         r = self.robot
         q = r.default_q(world.base)
         for arm in ARMS:
-            q = r.set(q, f"{arm}_arm", world.arms[arm])
+            r.group(f"{arm}_arm").write(q, world.arms[arm])  # in place: this runs at every sync
             g = world.grippers[arm]
             if g == "open":
                 q = r.open_gripper(q, arm)
@@ -221,10 +221,15 @@ class PR2Geometry:
 
     def sync(self, world: World) -> np.ndarray:
         """Make the collision world match ``world``; returns its configuration."""
-        q = self.config(world)
-        if world is self._synced:
-            return q
         last = self._synced
+        if world is last:
+            return self._synced_q.copy()
+        if last is not None and world.arms is last.arms and world.grippers is last.grippers and world.held is last.held:
+            q = self._synced_q.copy()  # only the base moved (replace(world, base=...)): base samplers do this a lot
+            self.robot.group("base").write(q, world.base)
+        else:
+            q = self.config(world)
+        self._synced_q = q.copy()
         if world.joints is not (last.joints if last is not None else None):
             for name, values in world.joints.items():
                 self.bodies[name].update(self.cw, values)
@@ -305,16 +310,21 @@ class PR2Geometry:
 
     def static_path_ok(self, world, arm, path, ignore=()) -> bool:
         """The piecewise-straight arm path avoids fixed obstacles (checked at RES_ARM)."""
-        q = self.sync(world)
-        group = self.robot.group(f"{arm}_arm")
-        check = self.cw.checker_for(f"{arm}_arm", q, ignore=tuple(ignore), movables=False)
-        with self.stats.timer("collision_checking"):
+        with self.stats.timer("collision_checking"):  # the sync (the robot's configuration) is the check's set-up
+            q = self.sync(world)
+            group = self.robot.group(f"{arm}_arm")
+            check = self.cw.checker_for(f"{arm}_arm", q, ignore=tuple(ignore), movables=False)
             return all(check(v) for v in self.arm_space[arm].densify(list(path)) if group.within_bounds(v))
 
     def in_collision(self, world, movables=True) -> bool:
-        q = self.sync(world)
         with self.stats.timer("collision_checking"):
-            return self.cw.in_collision(q, movables=movables)
+            return self.cw.in_collision(self.sync(world), movables=movables)
+
+    def hand_free(self, world, arm, T, ignore=(), movables=False) -> bool:
+        """The hand alone (opened as in ``world``) with its tool frame at ``T`` touches no fixed obstacle
+        (nor movables, if asked): a grasp that fails this needs no IK."""
+        with self.stats.timer("collision_checking"):
+            return not self.cw.hand_collides(self.sync(world), arm, T, ignore, movables)
 
     def ik(self, world, arm, target, rng, movables=False, ignore=(), seed=None, attempts=8, gripper=None):
         """Arm vector reaching ``target`` from ``world``'s base (seeded by ``seed``), checked against
@@ -324,8 +334,8 @@ class PR2Geometry:
         w = world.with_arm(arm, REACH_SEED[arm] if seed is None else seed)
         if gripper:
             w = w.with_gripper(arm, gripper)
-        q = self.sync(w)
-        with self.stats.timer("ik"):
+        with self.stats.timer("ik"):  # the sync (the seed configuration) is the solver's set-up
+            q = self.sync(w)
             return solve_ik(self.robot, arm, target, q, rng=rng, world=self.cw, attempts=attempts,
                             ignore=tuple(ignore), movables=movables)
 
@@ -438,6 +448,50 @@ class PR2Geometry:
             segments.append(self._segment(kind, group, res.path, holding))
         return res
 
+    def _transit(self, motion, w, arm, start, goal, label, segs, acc, staged=None):
+        """An arm transit. ``staged`` ("start" or "goal") names an end in a narrow place (a grasp in a
+        cubby's mouth): the path first tried goes along the tool's x axis from that end to a staging
+        point behind it (the layout's "stage", in m; 0: off), so that the search runs in free space; then
+        the plain query."""
+        from interlayer.motion import MotionPlan
+
+        group = f"{arm}_arm"
+        stage = self.layout.extra.get("stage", 0.0)
+        if staged and stage:
+            end = np.asarray(goal if staged == "goal" else start, float)
+            line = self._staging(w, arm, end, stage)  # from the end outwards
+            if line is not None and self.fine_ok(w, group, line, acc):
+                a, b = (start, line[-1]) if staged == "goal" else (line[-1], goal)
+                res = self._plan(motion, self.arm_query(w, arm, a, b, label, acc), "transit", group, [],
+                                 _holding(w), w, acc)
+                if res.ok:
+                    path = (*res.path, *line[-2::-1]) if staged == "goal" else (*line[:-1], *res.path)
+                    segs.append(self._segment("transit", group, path, _holding(w)))
+                    return MotionPlan(True, path)
+                if res.obstructions:
+                    return res
+        return self._plan(motion, self.arm_query(w, arm, start, goal, label, acc), "transit", group, segs,
+                          _holding(w), w, acc)
+
+    def _staging(self, w, arm, v, stage):
+        """Arm vectors from ``v`` to the tool ``stage`` further back along its x axis, or None:
+        IK in steps of 5 cm, each seeded by the last, free of everything."""
+        from interlayer_pinocchio import solve_ik
+
+        q = self.sync(w.with_arm(arm, v))
+        T = self.robot.tool_pose(q, arm)
+        group = self.robot.group(f"{arm}_arm")
+        n = max(1, math.ceil(stage / 0.05 - 1e-9))
+        line = [np.asarray(v, float)]
+        for k in range(1, n + 1):
+            with self.stats.timer("ik"):
+                u = solve_ik(self.robot, arm, T @ trans(-stage * k / n, 0, 0), group.set(q, line[-1]),
+                             rng=np.random.default_rng(0), world=self.cw, attempts=1)
+            if u is None or self.arm_space[arm].distance(u, line[-1]) > 0.35:
+                return None
+            line.append(u)
+        return line
+
     def fine_ok(self, world, group, path, acc=None) -> bool:
         """The path is collision-free at the validator's resolution (5x finer than planning)."""
         q = self.sync(world)
@@ -523,8 +577,7 @@ class PR2Geometry:
         approach, lift = cand.waypoints
         pre, grasp = approach[0], approach[-1]
         group, segs, w = f"{arm}_arm", [], world
-        res = self._plan(motion, self.arm_query(w, arm, w.arms[arm], pre, "pick transit", acc), "transit", group, segs,
-                         _holding(w), w, acc)
+        res = self._transit(motion, w, arm, w.arms[arm], pre, "pick transit", segs, acc, staged="goal")
         if not res.ok:
             return _failure(res, "pick transit", obj)
         w, stuck = self.set_gripper(w.with_arm(arm, pre), arm, self.grasp_opening(w, arm, obj, grasp), segs,
@@ -548,8 +601,7 @@ class PR2Geometry:
         carry = self.carry(w, arm, np.random.default_rng(0))
         if carry is None:
             return StepOutcome(False, failure=Failure("ik", (), "no collision-free carry posture"))
-        res = self._plan(motion, self.arm_query(w, arm, lift[-1], carry, "pick carry", acc), "transit", group, segs,
-                         _holding(w), w, acc)
+        res = self._transit(motion, w, arm, lift[-1], carry, "pick carry", segs, acc, staged="start")
         if not res.ok:
             return _failure(res, "pick carry", obj)
         return StepOutcome(True, w.with_arm(arm, carry), segs)
