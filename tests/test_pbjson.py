@@ -122,6 +122,65 @@ def test_initial_pose_goal_holds_at_the_start_and_after_a_return(tmp_path):
     assert np.allclose(C[:3, 3], (1.3, 0.0, 0.851))  # the body pose of the file, to the box's centre
 
 
+def test_an_object_standing_on_a_goal_pose_occupies_it_until_picked(tmp_path):
+    """a and b swap places (a's goal is b's start and the other way round): each occupies the other's goal
+    pose from the start, so the first task plan already holds one while the other is put in its place."""
+    from interlayer.abstraction import abstract
+    from interlayer.domain import GroundStep
+
+    a, b = [1, 0, 0, 0, 1.1, 0.1, 0.751], [1, 0, 0, 0, 1.2, -0.2, 0.751]  # the body poses of the scene
+    p = load(tmp_path, scene(goal_poses={"a": b, "b": a}))
+    assert {x for x in p.init if x[0] == "Occupies"} == {("Occupies", "b", "a"), ("Occupies", "a", "b")}
+    m = abstract(p)
+
+    def pick(o, arm, other):
+        return GroundStep("pick", (o, arm, other, f"bpfg_{o}_{arm}", f"gpfg_{o}_{arm}", f"gpfg_{o}_{other}"))
+
+    put_a = GroundStep("place_at_goal", ("a", "left", "bpfgp_a_left", "gpfgp_a_left"))
+    holding_a = m.progress(m.init, pick("a", "left", "right"))
+    assert not m.applicable(holding_a, put_a)  # b is still where a goes
+    assert m.applicable(m.progress(holding_a, pick("b", "right", "left")), put_a)
+    # an object put somewhere else occupies nothing: a goal pose away from both is free from the start
+    assert not any(x[0] == "Occupies" for x in load(tmp_path, scene(goal_poses={"a": [1, 0, 0, 0, 1.35, -0.2, 0.751]})).init)
+
+
+def test_a_goal_pose_is_reached_from_behind_the_tool(tmp_path, monkeypatch):
+    """The goal pose and the grasp fix the tool's heading: bases are sampled behind the tool, not all
+    around the spot (the generator's draws repeat in every world of an epoch: a bad draw fails them all)."""
+    from dataclasses import replace
+
+    from interlayer.domain import GroundStep
+    from interlayer_clutter import samplers
+    from interlayer_clutter.samplers import base_near
+    from interlayer_pbjson.samplers import PBSampler
+    from interlayer_pr2.generators import grasp_poses
+
+    p = load(tmp_path, scene(goal_poses={"b": [1, 0, 0, 0, 1.35, -0.2, 0.751]}))
+    g = p.geometry
+    rng = np.random.default_rng(0)
+    for heading in (0.0, 2.5):
+        for _ in range(20):
+            bx, by, _ = base_near(g, 1.35, -0.2, rng, heading=heading)
+            assert abs(math.remainder(math.atan2(-0.2 - by, 1.35 - bx) - heading, 2 * math.pi)) <= 0.8 + 1e-9
+    w = replace(g.initial_world(), base=(0.6, -0.2, 0.0))
+    P = w.objects["b"]
+    _, T = grasp_poses(g, "b", P, 0.0, ("side",), np.random.default_rng(0), n_side=1)[0]
+    w = replace(w, objects={k: v for k, v in w.objects.items() if k != "b"}, held={"left": ("b", np.linalg.inv(T) @ P)})
+    w = w.with_arm("left", g.carry(w, "left", np.random.default_rng(0)))
+    step = GroundStep("place_at_goal", ("b", "left", "bpfgp_b_left", "gpfgp_b_left"))
+    asked = []
+
+    def recording(*args, heading=None, **kw):
+        asked.append(heading)
+        return base_near(*args, heading=heading, **kw)
+
+    monkeypatch.setattr(samplers, "base_near", recording)
+    found = list(PBSampler([0])(p, step, w, np.random.default_rng(0)))
+    assert found and asked and None not in asked
+    Tg = np.asarray(found[0].values["gpfgp_b_left"])
+    assert any(abs(math.remainder(h - math.atan2(Tg[1, 0], Tg[0, 0]), 2 * math.pi)) < 1e-6 for h in asked)
+
+
 def test_clean_and_cook_semantics(tmp_path):
     """Symbolically: placing on the sink cleans; on the stove cooks only a clean object. The validator
     replays the releases of a trajectory the same way."""
@@ -258,6 +317,27 @@ def test_papers_scene_as_shipped_is_unsolvable_by_gripper_width(tmp_path):
     assert time.perf_counter() - t0 < 30
     api.write_outputs(result, tmp_path)
     assert "problem" in (tmp_path / "config.toml").read_text()  # rebuildable: problem.file is recorded
+
+
+def test_the_base_stays_inside_the_walls_around_it(tmp_path):
+    """Base poses beyond a room's walls are collision-free but no drive reaches them: the base's limits
+    end at the walls (a wall with a doorway wide enough for the base does not stop it)."""
+    from interlayer_pbjson.loader import reachable_limits
+    from interlayer_pr2.scene import ObjectSpec
+
+    def wall(name, x, y, sx, sy):
+        return _body(name, (x, y, 0.2), [_box((sx / 2, sy / 2, 0.2))])
+
+    data = scene(goal_regions={"b": "goal"})
+    data["bodies"] += [wall("w1", 0.6, -2.0, 5.0, 0.02), wall("w2", 0.6, 2.0, 5.0, 0.02), wall("w3", 2.5, 0.0, 0.02, 4.0),
+                       wall("w4", -1.5, 0.0, 0.02, 4.0)]
+    (xmin, xmax), (ymin, ymax) = load(tmp_path, data).geometry.layout.extra["base_limits"]
+    assert -1.5 < xmin < -1.1 and 2.1 < xmax < 2.5 and -2.0 < ymin < -1.6 and 1.6 < ymax < 2.0
+    walls = [ObjectSpec("w", "box", (0.02, 4.0, 0.4), (1.0, 2.5, 0.2, 0.0), movable=False),  # x = 1, y from 0.5 up
+             ObjectSpec("v", "box", (0.02, 4.0, 0.4), (1.0, -2.5, 0.2, 0.0), movable=False)]  # y from -0.5 down
+    assert reachable_limits(walls, (0.0, 0.0), (-3.0, 3.0), (-3.0, 3.0))[0][1] == 3.0  # through the 1 m doorway
+    walls[1] = ObjectSpec("v", "box", (0.02, 4.0, 0.4), (1.0, -1.8, 0.2, 0.0), movable=False)  # 0.3 m: too narrow
+    assert reachable_limits(walls, (0.0, 0.0), (-3.0, 3.0), (-3.0, 3.0))[0][1] < 1.0
 
 
 def wall_scene(gap=0.07):

@@ -11,12 +11,14 @@ from interlayer_pr2.scene import REST_GAP, base_limits, table_top
 from interlayer_pr2.world import ARMS, pose4, wrap
 
 
-def _base_near(geometry, x, y, rng, reach=(0.55, 0.95)):
-    """A base pose facing (x, y) from outside the table, sampled around the table's sides."""
+def base_near(geometry, x, y, rng, reach=(0.55, 0.95), heading=None):
+    """A base pose facing (x, y) from outside the table, sampled around the table's sides; behind the
+    tool when its ``heading`` is fixed (a given object pose and grasp: most sides cannot reach it)."""
     xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
     (lx, hx), (ly, hy) = base_limits(geometry.layout)
     for _ in range(20):
-        r, a = rng.uniform(*reach), rng.uniform(-math.pi, math.pi)
+        r = rng.uniform(*reach)
+        a = rng.uniform(-math.pi, math.pi) if heading is None else heading + math.pi + rng.uniform(-0.8, 0.8)
         bx, by = x + r * math.cos(a), y + r * math.sin(a)
         if xmin - 0.33 < bx < xmax + 0.33 and ymin - 0.33 < by < ymax + 0.33:
             continue  # the base would stand under the table
@@ -27,12 +29,13 @@ def _base_near(geometry, x, y, rng, reach=(0.55, 0.95)):
     return None
 
 
-def _coarse(a, b, n=8):
+def coarse_line(a, b, n=8):
+    """n evenly spaced configurations from a (excluded) to b: a rough guess at a transit's sweep."""
     a, b = np.asarray(a, float), np.asarray(b, float)
     return [a + (b - a) * k / n for k in range(1, n + 1)]
 
 
-def _movables_on(geometry, world, arm, path, ignore, gripper="open"):
+def movables_on(geometry, world, arm, path, ignore, gripper="open"):
     """Movable objects the arm (gripper open) touches at the waypoints of ``path``."""
     w = world.with_gripper(arm, gripper) if gripper else world
     hit = set()
@@ -78,7 +81,7 @@ class ClutterSampler(EpochState):
         self.corridors[(obj, arm)] = (_pose_key(world.objects[obj]), [c[6] for c in ranked[:3]])
         for nhit, _, base, kind, T, wps, _ in ranked[:limit]:
             yield Candidate((base, *wps), {bp_ref: list(base), gp_ref: T.tolist()},
-                            f"{kind} grasp from base {_fmt(base)} ({nhit[0]} objects on the approach, {nhit[1]} on the way)")
+                            f"{kind} grasp from base {fmt(base)} ({nhit[0]} objects on the approach, {nhit[1]} on the way)")
 
     def grasp_candidates(self, problem, world, obj, arm, tries: int = 40):
         """(base, kind, T, waypoints, tool xy path) candidates for picking obj with arm where it stands;
@@ -107,7 +110,7 @@ class ClutterSampler(EpochState):
         for i in range(n_bases + 2 * tries):
             if i >= n_bases and found:
                 break  # past the first bases, only search on while nothing at all was found
-            base = _base_near(geometry, x, y, rng)
+            base = base_near(geometry, x, y, rng)
             if base is None or not _base_free(geometry, w0, base):
                 continue
             w = replace(w0, base=base)
@@ -144,9 +147,9 @@ class ClutterSampler(EpochState):
                 # exactly the refinement's first check: the approach (hover descent included), densified
                 opened = geometry.grasp_opening(w, arm, obj, wps[0][-1])
                 hit = geometry._movables_on_line(w.with_gripper(arm, opened), arm, wps[0], [0.0]) - {obj}
-                hit |= _movables_on(geometry, w, arm, list(wps[1]), (obj,), gripper=opened)
+                hit |= movables_on(geometry, w, arm, list(wps[1]), (obj,), gripper=opened)
                 # a rough guess at the transit's sweep: the straight joint-space line to the pre-grasp
-                sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], wps[0][0]), (obj,), gripper=None)
+                sweep = movables_on(geometry, w, arm, coarse_line(w.arms[arm], wps[0][0]), (obj,), gripper=None)
             drive = math.hypot(base[0] - world.base[0], base[1] - world.base[1]) + 0.3 * abs(wrap(base[2] - world.base[2]))
             out.append(((len(hit), len(sweep)), drive, base, kind, T, wps, xy))
         out.sort(key=lambda f: (f[0], f[1]))
@@ -162,7 +165,7 @@ class ClutterSampler(EpochState):
         d_obj = min((math.hypot(x - Q[0, 3], y - Q[1, 3]) for Q in world.objects.values()), default=1.0)
         Tt = world.objects.get(target)
         d_t = math.hypot(x - Tt[0, 3], y - Tt[1, 3]) if Tt is not None else 1.0
-        return min(d_obj, 0.25) + 0.5 * min(d_t, 0.6) - 1.5 * edge - _in_corridors(x, y, corridors)
+        return min(d_obj, 0.25) + 0.5 * min(d_t, 0.6) - 1.5 * edge - in_corridors(x, y, corridors)
 
     def corridors_for(self, world, placing, target):
         """(penalty, footprint points) of the best grasps ranked in this epoch of every object still
@@ -195,16 +198,15 @@ class ClutterSampler(EpochState):
             on = ", on a known approach" if blocks else ""
             yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])),
                             {bp_ref: list(base), pd_ref: T.tolist(), "tloc": (obj, P), "object_pose": P.tolist()},
-                            f"{obj} at {_fmt((x, y))} from base {_fmt(base)} ({hits} + {sweep} objects in the way{on})")
+                            f"{obj} at {fmt((x, y))} from base {fmt(base)} ({hits} + {sweep} objects in the way{on})")
 
     def putdown_candidates(self, problem, obj, arm, world, rng, corridors, limit, tries: int = 80):
         """The ``limit`` best (ordering key, rank, base, x, y, object pose, tool pose, lowering, retreat)
         for putting down obj held in arm."""
-        from interlayer_pr2.generators import LIFT, PRE_GRASP, _line, _putdown, trans
+        from interlayer_pr2.generators import _putdown
 
         geometry = problem.geometry
         G = world.held[arm][1]
-        opened = geometry.opening(obj, G)
         spots = []
         geometry.sync(world)
         target = geometry.layout.target
@@ -214,27 +216,14 @@ class ClutterSampler(EpochState):
         found = []
         clear, good = [], []  # candidates with nothing on their lowering and retreat; and off known approaches
         for rank, (_, x, y, z) in enumerate(spots):
-            blocks = _in_corridors(x, y, corridors)
+            blocks = in_corridors(x, y, corridors)
             if rank >= 3 * limit and (good or (clear and rank >= 6 * limit)):
                 break  # past the best spots, search on while every spot found is certainly or likely blocked
             for _ in range(4 if rank < 3 * limit else 8):
-                base = _base_near(geometry, x, y, rng)
-                if base is None or not _base_free(problem.geometry, world, base, tuck=arm):
+                tried = putdown_motion(geometry, world, arm, x, y, lambda h, x=x, y=y, z=z: _putdown(G, x, y, z, h)[0], rng)
+                if tried is None:
                     continue
-                P, T = _putdown(G, x, y, z, math.atan2(y - base[1], x - base[0]) + rng.uniform(-0.3, 0.3))
-                w = replace(world, base=base)
-                put = geometry.ik(w, arm, T, rng, attempts=4)
-                if put is None:
-                    continue
-                lower = _line(geometry, w, arm, T, lambda d, T=T: trans(0, 0, d) @ T, LIFT, put, rng)
-                back = _line(geometry, w.with_gripper(arm, opened), arm, T, lambda d, T=T: T @ trans(-d, 0, 0), PRE_GRASP,
-                             put, rng, gripper=opened)
-                if lower is None or back is None:
-                    continue
-                with geometry.stats.timer("collision_checking"):
-                    hit = _movables_on(geometry, w, arm, lower, (), gripper=None)
-                    hit |= _movables_on(geometry, w, arm, back, (), gripper=opened)
-                    sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], lower[-1]), (), gripper=None)
+                base, P, T, lower, back, hit, sweep = tried
                 # a spot on a known approach blocks a later pick for sure: worse than a guessed transit hit
                 found.append(((len(hit), blocks, len(sweep)), rank, base, x, y, P, T, lower, back))
                 clear += [found[-1]] if not hit else []
@@ -244,6 +233,38 @@ class ClutterSampler(EpochState):
                 break
         found.sort(key=lambda f: (f[0], f[1]))
         return found[:limit]
+
+
+def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None):
+    """One try at putting what ``arm`` holds down at (x, y): a base pose facing the spot (behind the tool
+    if its ``heading`` is fixed), the object's pose ``pose_at(tool heading)`` (None: none there), IK, the
+    lowering and the retreat. Returns (base, object pose, tool pose, lowering, retreat, movables on the
+    lowering and retreat, movables on the straight joint-space line from the arm's posture) or None."""
+    from interlayer_pr2.generators import LIFT, PRE_GRASP, _line, trans
+
+    base = base_near(geometry, x, y, rng, heading=heading)
+    if base is None or not _base_free(geometry, world, base, tuck=arm):
+        return None
+    P = pose_at(math.atan2(y - base[1], x - base[0]) + rng.uniform(-0.3, 0.3))
+    if P is None:
+        return None
+    obj, G = world.held[arm]
+    opened = geometry.opening(obj, G)  # only as wide as the grasp needs
+    T = P @ np.linalg.inv(G)
+    w = replace(world, base=base)
+    put = geometry.ik(w, arm, T, rng, attempts=4)
+    if put is None:
+        return None
+    lower = _line(geometry, w, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, put, rng)
+    back = _line(geometry, w.with_gripper(arm, opened), arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, put, rng,
+                 gripper=opened)
+    if lower is None or back is None:
+        return None
+    with geometry.stats.timer("collision_checking"):
+        hit = movables_on(geometry, w, arm, lower, (), gripper=None)
+        hit |= movables_on(geometry, w, arm, back, (), gripper=opened)
+        sweep = movables_on(geometry, w, arm, coarse_line(w.arms[arm], lower[-1]), (), gripper=None)
+    return base, P, T, lower, back, hit, sweep
 
 
 def _reach_xy(base, T, step=0.05):
@@ -301,14 +322,14 @@ def _table_spots(geometry, world, obj, rng, tries, want=12, corridors=()):
                 hits = geometry.cw.objects_overlap(obj, pose4(float(x), float(y), z, 0.0))
             if hits & geometry.fixed:
                 continue
-            out += not _in_corridors(x, y, corridors)
+            out += not in_corridors(x, y, corridors)
             yield float(x), float(y), z
         if out >= want:
             return
         d = np.where(ok, -1.0, d)  # already offered
 
 
-def _in_corridors(x, y, corridors) -> float:
+def in_corridors(x, y, corridors) -> float:
     """The summed penalties of the corridors (see ClutterSampler.corridors_for) that (x, y) lies in."""
     return sum(weight for weight, xy in corridors if np.min(np.hypot(xy[:, 0] - x, xy[:, 1] - y)) < CORRIDOR)
 
@@ -317,5 +338,6 @@ def _pose_key(P):
     return tuple(np.round(np.asarray(P)[:3, :4].ravel(), 4))
 
 
-def _fmt(p):
+def fmt(p):
+    """A point or pose for a candidate's label."""
     return "(" + ", ".join(f"{v:.2f}" for v in p) + ")"

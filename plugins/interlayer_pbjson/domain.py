@@ -9,6 +9,10 @@ obstructions are learned with two arguments. What it adds:
   stable placement on that surface (inside its polygon, clear of fixed obstacles and other objects).
 * ``place_at_goal`` puts an object at its goal pose (``goal_poses``, "initial" included): references
   ``bpfgp_<o>_<arm>`` / ``gpfgp_<o>_<arm>``; ``(AtGoalPose ?o)`` holds until the object is picked.
+  ``(Occupies ?b ?o)``: ?b stands where ?o's goal pose is (read off the start, like ``On``); ?o cannot
+  be put there until ?b is picked. Put-downs keep off goal poses, so nothing comes to occupy one later.
+  Without it the task planner learns each occupant only after a failed put-down, typically with both
+  hands already full of objects whose goal poses are occupied (rearrangement: a permutation of poses).
 * kitchen semantics as conditional effects: placing on a sink cleans, placing a clean object on a
   stove cooks.
 * ``go_home`` drives the base back to its start and the empty arms to their start configuration
@@ -67,7 +71,8 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
                       "IsGPFGP": ("pdpose", "obj", "arm")})
         skolems += [Skolem("bpfgp", ("obj", "arm"), "bpose", "IsBPFGP", "a base pose from which arm can put obj at its goal pose"),
                     Skolem("gpfgp", ("obj", "arm"), "pdpose", "IsGPFGP", "a gripper pose putting obj at its goal pose")]
-        pick_eff.append("(not (AtGoalPose ?o))")
+        preds["Occupies"] = ("obj", "obj")
+        pick_eff += ["(not (AtGoalPose ?o))", "(forall (?x - obj) (not (Occupies ?o ?x)))"]
     actions = [
         ActionSpec(
             name="pick",
@@ -88,7 +93,8 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
             name="place_at_goal",
             parameters=(("?o", "obj"), ("?arm", "arm"), ("?bp", "bpose"), ("?pd", "pdpose")),
             precondition=f"""(and (Holding ?o ?arm) (HasGoalPose ?o) (IsBPFGP ?bp ?o ?arm) (IsGPFGP ?pd ?o ?arm)
-                                  (forall (?b - obj) (not (PDObstructs ?b ?pd))){' (not (AtHome))' if home else ''})""",
+                                  (forall (?b - obj) (and (not (PDObstructs ?b ?pd)) (not (Occupies ?b ?o))))
+                                  {'(not (AtHome))' if home else ''})""",
             effect="(and (not (Holding ?o ?arm)) (HandEmpty ?arm) (Resting ?o) (AtGoalPose ?o))",
             learn={"obstruction": ("(PDObstructs ?blocker ?pd)",)}, pose_generator="pbjson:place"))
     if home:

@@ -7,6 +7,9 @@ from __future__ import annotations
 
 import json
 import logging
+import math
+
+import numpy as np
 
 from interlayer.domain import Problem
 from interlayer.errors import UserError
@@ -56,6 +59,48 @@ def torso_height(scene) -> float:
     return float(min(0.33, max(start, work)))
 
 
+BASE_RADIUS = 0.30  # m: a disk inside the PR2 base's 0.67 m square: where it cannot pass, the robot cannot
+BASE_TOP = 0.35  # m: fixed shapes reaching below this height stand in the base's way (walls, legs)
+
+
+def reachable_limits(fixed, start, xr, yr, res=0.04):
+    """The x and y ranges, within (xr, yr), of the base positions reachable from ``start``: a disk of
+    BASE_RADIUS flood-filled on a grid among the fixed shapes low enough to hit the base. It errs on the
+    reachable side, so no base pose outside is ever reachable (e.g. beyond a room's walls, where base
+    poses are collision-free but every drive to them fails)."""
+    xs, ys = np.arange(xr[0], xr[1] + 1e-9, res), np.arange(yr[0], yr[1] + 1e-9, res)
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    free = np.ones(X.shape, bool)
+    for o in fixed:
+        if o.pose[2] - o.height / 2 > BASE_TOP:
+            continue
+        dx, dy = X - o.pose[0], Y - o.pose[1]
+        if o.shape == "cylinder":
+            d = np.hypot(dx, dy) - o.size[0]
+        else:  # the distance to a rectangle turned by yaw
+            c, s = math.cos(o.pose[3]), math.sin(o.pose[3])
+            u, v = np.abs(c * dx + s * dy) - o.size[0] / 2, np.abs(c * dy - s * dx) - o.size[1] / 2
+            d = np.hypot(np.maximum(u, 0), np.maximum(v, 0)) + np.minimum(np.maximum(u, v), 0)
+        free &= d >= BASE_RADIUS
+    near = np.hypot(X - start[0], Y - start[1]) <= 2.5 * res
+    reach = free & near
+    if not reach.any():
+        return xr, yr  # the start is too tight for the disk: no conclusion
+    while True:
+        grown = reach.copy()
+        grown[1:] |= reach[:-1]
+        grown[:-1] |= reach[1:]
+        grown[:, 1:] |= reach[:, :-1]
+        grown[:, :-1] |= reach[:, 1:]
+        grown &= free
+        if (grown == reach).all():
+            break
+        reach = grown
+    i, j = np.nonzero(reach)
+    return ((max(xr[0], float(xs[i.min()]) - res), min(xr[1], float(xs[i.max()]) + res)),
+            (max(yr[0], float(ys[j.min()]) - res), min(yr[1], float(ys[j.max()]) + res)))
+
+
 def build_problem(scene, source) -> Problem:
     from .world import PBGeometry
 
@@ -74,6 +119,7 @@ def build_problem(scene, source) -> Problem:
                               for p in [o.pose[:2]]]
     lo = (min(p[0] for p in pts) - 1.2, max(p[0] for p in pts) + 1.2)
     hi = (min(p[1] for p in pts) - 1.2, max(p[1] for p in pts) + 1.2)
+    lo, hi = reachable_limits([o for o in scene.fixed if o.name not in scene.floors], scene.base, lo, hi)
     goals = scene.goals
     main_top = max((s.z for s in tables), default=0.8)
     torso = torso_height(scene)
@@ -124,6 +170,7 @@ def build_problem(scene, source) -> Problem:
         init.add(("HasGoalPose", o))
         if geometry.at_goal_pose(o, world.objects[o]):
             init.add(("AtGoalPose", o))
+        init |= {("Occupies", b, o) for b in geometry.goal_occupants(o, world)}
     parts = []
     if goals["holding"]:
         t = goals["holding"]

@@ -18,8 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 from interlayer.refine import Candidate
-from interlayer_clutter.samplers import ClutterSampler, _base_near, _coarse, _fmt, _in_corridors, _movables_on
-from interlayer_pr2.generators import _base_free
+from interlayer_clutter.samplers import ClutterSampler, fmt, in_corridors, putdown_motion
 from interlayer_pr2.scene import REST_GAP, _radius
 from interlayer_pr2.world import pose4
 
@@ -73,7 +72,7 @@ class PBSampler(ClutterSampler):
             d = min((math.hypot(x - a, y - b) - r - s for a, b, s in others), default=1.0)
             if d < 0.01:
                 continue
-            spots.append((min(d, 0.25) - _in_corridors(x, y, corridors) + 0.1 * rng.random(), float(x), float(y)))
+            spots.append((min(d, 0.25) - in_corridors(x, y, corridors) + 0.1 * rng.random(), float(x), float(y)))
             if len(spots) >= tries:
                 break
         spots.sort(key=lambda s: -s[0])
@@ -85,9 +84,11 @@ class PBSampler(ClutterSampler):
             return P
 
         yield from self._putdowns(problem, world, obj, arm, step.args[4], step.args[5],
-                                  [(x, y, lambda h, x=x, y=y: pose_at(x, y, h)) for _, x, y in spots], rng)
+                                  [(x, y, lambda h, x=x, y=y: pose_at(x, y, h), None) for _, x, y in spots], rng)
 
     def place_at_goal(self, problem, step, world, rng):
+        from interlayer_pr2.generators import _yaw
+
         obj, arm = step.args[0], step.args[1]
         geometry = problem.geometry
         if world.holder(obj) != arm:
@@ -98,46 +99,36 @@ class PBSampler(ClutterSampler):
         yaw = math.atan2(C[1, 0], C[0, 0])
         x, y, z = (float(v) for v in C[:3, 3])
         variants = [pose4(x, y, z, yaw + k * period) for k in range(int(round(2 * math.pi / period)))]
+        G = world.held[arm][1]  # the tool's heading at each variant is fixed: the base stands behind it
         yield from self._putdowns(problem, world, obj, arm, step.args[2], step.args[3],
-                                  [(x, y, lambda h, P=P: P) for P in variants], rng, per_spot=8)
+                                  [(x, y, lambda h, P=P: P, _yaw(P @ np.linalg.inv(G))) for P in variants], rng, per_spot=8)
 
     def _putdowns(self, problem, world, obj, arm, bp_ref, pd_ref, spots, rng, limit: int = 4, per_spot: int = 4):
-        """Candidates (base, lowering, retreat) for the object poses ``spots`` offers: (x, y, pose(heading))
-        with heading the direction from the base to (x, y); fewest objects in the way first."""
-        from interlayer_pr2.generators import LIFT, PRE_GRASP, _line, trans
-
+        """Candidates (base, lowering, retreat) for the object poses ``spots`` offers: (x, y, pose(heading),
+        the tool's heading if the pose fixes it) with heading the direction from the base to (x, y);
+        fewest objects in the way first."""
         geometry = problem.geometry
-        G = world.held[arm][1]
-        opened = geometry.opening(obj, G)
+
+        def clear_of_fixed(pose_at):
+            def at(heading):
+                P = pose_at(heading)
+                if P is None:
+                    return None
+                with geometry.stats.timer("collision_checking"):
+                    return None if geometry.cw.objects_overlap(obj, P) & geometry.fixed else P
+            return at
+
         found = []
-        for rank, (x, y, pose_at) in enumerate(spots):
+        for rank, (x, y, pose_at, heading) in enumerate(spots):
             if rank >= 3 * limit and found:
                 break  # past the best spots, only search on while nothing at all was found
             for _ in range(per_spot if rank < 3 * limit else 2 * per_spot):
-                base = _base_near(geometry, x, y, rng)
-                if base is None or not _base_free(geometry, world, base, tuck=arm):
+                tried = putdown_motion(geometry, world, arm, x, y, clear_of_fixed(pose_at), rng, heading)
+                if tried is None:
                     continue
-                P = pose_at(math.atan2(y - base[1], x - base[0]) + rng.uniform(-0.3, 0.3))
-                if P is None:
-                    continue
+                base, P, T, lower, back, hit, sweep = tried
                 with geometry.stats.timer("collision_checking"):
-                    hits = geometry.cw.objects_overlap(obj, P)
-                if hits & geometry.fixed:
-                    continue
-                T = P @ np.linalg.inv(G)
-                w = replace(world, base=base)
-                put = geometry.ik(w, arm, T, rng, attempts=4)
-                if put is None:
-                    continue
-                lower = _line(geometry, w, arm, T, lambda d, T=T: trans(0, 0, d) @ T, LIFT, put, rng)
-                back = _line(geometry, w.with_gripper(arm, opened), arm, T, lambda d, T=T: T @ trans(-d, 0, 0), PRE_GRASP,
-                             put, rng, gripper=opened)
-                if lower is None or back is None:
-                    continue
-                with geometry.stats.timer("collision_checking"):
-                    hit = _movables_on(geometry, w, arm, lower, (), gripper=None) | hits
-                    hit |= _movables_on(geometry, w, arm, back, (), gripper=opened)
-                    sweep = _movables_on(geometry, w, arm, _coarse(w.arms[arm], lower[-1]), (), gripper=None)
+                    hit |= geometry.cw.objects_overlap(obj, P)  # objects where it is put
                 found.append(((len(hit), len(sweep)), rank, base, x, y, P, T, lower, back))
                 break
             if len(found) >= limit or (found and found[-1][0] == (0, 0) and len(found) >= 2):
@@ -146,7 +137,7 @@ class PBSampler(ClutterSampler):
         for nhit, _, base, x, y, P, T, lower, back in found:
             yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])),
                             {bp_ref: list(base), pd_ref: T.tolist(), "tloc": (obj, P), "object_pose": P.tolist()},
-                            f"{obj} at {_fmt((x, y))} from base {_fmt(base)} ({nhit[0]} + {nhit[1]} objects in the way)")
+                            f"{obj} at {fmt((x, y))} from base {fmt(base)} ({nhit[0]} + {nhit[1]} objects in the way)")
 
 
 def go_home(problem, step, world, rng):

@@ -91,6 +91,15 @@ class PBGeometry(PR2Geometry):
         c = T @ np.array([ox, oy, oz, 1.0])
         return pose4(c[0], c[1], c[2], math.atan2(T[1, 0], T[0, 0]) + dyaw)
 
+    def goal_occupants(self, obj, world) -> set:
+        """The other objects that obj, put at its goal pose, would touch (raised by its rest gap, so that
+        an object it is to stand on does not count)."""
+        C = self.layout.extra["goal_centres"][obj].copy()
+        C[2, 3] += REST_GAP
+        self.sync(world)
+        with self.stats.timer("collision_checking"):
+            return self.cw.objects_overlap(obj, C) & set(world.objects)
+
     def symmetry(self, obj) -> float:
         """The yaw period of obj's shape (0: any yaw)."""
         o = self.specs[obj]
