@@ -117,3 +117,17 @@ def test_a_relaxed_path_clear_of_movables_is_the_answer():
                     is_valid_static=fixed.is_valid, movables_at=lambda q: {"box"} if in_box(q) else set())
     plan = FullSearchTimesOut().plan(q)
     assert plan.ok and len(plan.path) == 4 and plan.obstructions == ()
+
+
+def test_ompl_asks_about_each_state_once_per_query(host):
+    """Rope shortcutting retries the same segments: within one query (the world does not change) each
+    state's validity is computed once, and the answers are still right."""
+    asked = []
+    q = wall_query(movable_wall=False)
+    wall_free = q.is_valid
+    q.is_valid = lambda v: asked.append(tuple(v)) or wall_free(v)
+    planner = host["motion_planners"].get("ompl:RRTConnect").factory({"time_limit": 0.5})
+    plan = planner.plan(q, straight=False)
+    assert plan.ok and all(wall_free(p) for p in SE2.densify(plan.path))
+    searched = asked[2:]  # plan() itself checks the start and the goal first
+    assert len(searched) > 100 and len(set(searched)) == len(searched)

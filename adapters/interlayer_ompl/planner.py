@@ -67,8 +67,8 @@ class OMPLPlanner(MotionPlanner):
         dim = space.dim
 
         if se2:
-            def to_vec(s):
-                return np.array((s.getX(), s.getY(), s.getYaw()))
+            def values(s):
+                return s.getX(), s.getY(), s.getYaw()
 
             def to_state(q):
                 st = ompl_space.allocState()
@@ -76,8 +76,8 @@ class OMPLPlanner(MotionPlanner):
                 st.setYaw(float(q[2]))
                 return st
         else:
-            def to_vec(s):  # index, never iterate: iterating an OMPL state segfaults
-                return np.array([s[i] for i in range(dim)])
+            def values(s):  # index, never iterate: iterating an OMPL state segfaults
+                return tuple([s[i] for i in range(dim)])
 
             def to_state(q):
                 st = ompl_space.allocState()
@@ -85,9 +85,23 @@ class OMPLPlanner(MotionPlanner):
                     st[i] = float(q[i])
                 return st
 
+        def to_vec(s):
+            return np.array(values(s))
+
+        # The world does not change during one query, and OMPL checks many states again (rope
+        # shortcutting retries the same segments: a third of its checks on the PR2): ask each state once.
+        known = {}
+
+        def valid(s):
+            key = values(s)
+            ok = known.get(key)
+            if ok is None:
+                ok = known[key] = bool(is_valid(np.array(key)))  # must be a Python bool
+            return ok
+
         self._seed_rng()
         setup = og.SimpleSetup(ompl_space)
-        setup.setStateValidityChecker(lambda s: bool(is_valid(to_vec(s))))  # must be a Python bool
+        setup.setStateValidityChecker(valid)
         setup.setStartAndGoalStates(to_state(start), to_state(goal))
         si = setup.getSpaceInformation()
         si.setStateValidityCheckingResolution(max(1e-4, space.resolution / ompl_space.getMaximumExtent()))
