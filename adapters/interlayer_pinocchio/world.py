@@ -252,7 +252,11 @@ class CollisionWorld:
 
     def colliding_movables(self, q, ignore: Iterable[str] = frozenset()) -> set[str]:
         """Names of non-held movable objects touched by the robot or a held object at ``q``."""
-        pairs = self._colliding_pairs(q, ("movables", None, frozenset(ignore), True))
+        key = ("movables", None, frozenset(ignore), True)
+        q = _as_q(q)
+        if not pin.computeCollisions(self._model, self._data, self._use(key).manager, q, True):
+            return set()  # the usual answer, at the cost of one check: collecting every pair costs 1.5 checks
+        pairs = self._colliding_pairs(q, key)
         return {self._gm.geometryObjects[b].name for _, b in pairs}
 
     def collision_pairs(self, q, ignore: Iterable[str] = frozenset(),

@@ -163,6 +163,17 @@ def test_in_collision_matches_pairwise_ground_truth(robot, holding):
         assert counts["held_pairs"] > 0.05 * n
 
 
+def test_a_configuration_clear_of_movables_is_answered_without_collecting_pairs(robot, monkeypatch):
+    """colliding_movables asks the cheap yes/no check first; only a hit collects the colliding pairs."""
+    world = table_world(robot)
+    collected = []
+    collect = world._colliding_pairs
+    monkeypatch.setattr(world, "_colliding_pairs", lambda *a: collected.append(1) or collect(*a))
+    assert world.colliding_movables(robot.default_q()) == set() and not collected  # tucked, far from the table
+    q = robot.set(robot.default_q(base=(0.0, 0.0, 0.0)), "base", [0.7, 0.0, 0.0])  # driven into the table
+    assert world.colliding_movables(q) and collected
+
+
 @pytest.mark.parametrize("group", ["left_arm", "right_arm", "base"])
 def test_group_checker_matches_ground_truth(robot, group):
     world = holding_world(robot, seed=3)
