@@ -56,9 +56,15 @@ class ConfigSpace:
         """Waypoints no further apart than ``resolution`` (both ends included)."""
         res = resolution or self.resolution
         out = [np.asarray(path[0], float)]
+        circular = [i for i, c in enumerate(self.circular) if c]
         for a, b in zip(path, path[1:]):
-            n = max(1, math.ceil(self.distance(a, b) / res))
-            out += [self.interpolate(a, b, k / n) for k in range(1, n + 1)]
+            d = self.difference(a, b)
+            n = max(1, math.ceil(float(np.linalg.norm(d)) / res))
+            # interpolate(a, b, k / n) for k = 1..n, all at once (collision checks walk these points)
+            points = np.asarray(a, float) + (np.arange(1, n + 1) / n)[:, None] * d
+            if circular:
+                points[:, circular] = (points[:, circular] + math.pi) % (2 * math.pi) - math.pi
+            out += list(points)
         return out
 
 
