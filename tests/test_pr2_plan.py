@@ -238,3 +238,59 @@ def test_the_cubby_transit_goes_through_the_staging_point():
         T = geo.robot.tool_pose(geo.sync(world.with_arm("left", goals[0])), "left")
         P = geo.robot.tool_pose(geo.sync(world.with_arm("left", pre)), "left")
         assert np.allclose(P @ trans(-stage, 0, 0), T, atol=3e-3)  # 5 cm behind, along the tool's x axis
+
+
+def test_the_blockwise_fine_check_agrees_with_checking_every_point():
+    """fine_ok certifies a block of points by its middle one, checked with a margin that covers how far
+    any body moves within the block. Paths of one block whose middle point grazes an obstacle (the
+    cubby, the table, the robot itself) are accepted exactly when every point is collision-free; on
+    free paths most points are checked only through their block's middle one."""
+    import numpy as np
+
+    from interlayer.api import prepare
+    from interlayer_pr2.world import FINE_BLOCK
+
+    geo = prepare(EXAMPLE, ["planner.seed=0"]).problem.geometry
+    world = geo.initial_world()
+    rng = np.random.default_rng(1)
+    plain_checks = []
+    checker_for = geo.cw.checker_for
+
+    def counting_checker_for(*args, margin=0.0, **kw):
+        check = checker_for(*args, margin=margin, **kw)
+        return check if margin else (lambda v: plain_checks.append(1) or check(v))
+
+    geo.cw.checker_for = counting_checker_for
+    outcomes = {True: 0, False: 0}
+    points = free_points = 0
+    for group in ("right_arm", "left_arm"):
+        arm, g = group.split("_")[0], geo.robot.group(group)
+        space = geo.arm_space[arm]
+        step = space.resolution / 5
+        check = checker_for(group, geo.sync(world))
+        samples = [rng.uniform(g.lower, g.upper) for _ in range(200)]
+        free = [v for v in samples if check(v)]
+        hit = [v for v in samples if not check(v)]
+        for f0, c0 in zip(free, hit):  # bisect to an obstacle's surface, then back off a little
+            f, c = f0, c0
+            for _ in range(30):
+                mid = (f + c) / 2
+                f, c = (mid, c) if check(mid) else (f, mid)
+            mid = f + (f0 - c0) / np.linalg.norm(f0 - c0) * rng.uniform(0, 2 * FINE_BLOCK * step)
+            u = rng.normal(size=7)
+            u *= (FINE_BLOCK // 2) * step / np.linalg.norm(u)
+            a, b = mid - u, mid + u
+            if not (check(mid) and g.within_bounds(a) and g.within_bounds(b)):
+                continue
+            expected = all(map(check, space.densify([a, b], step)))
+            assert geo.fine_ok(world.with_arm(arm, a), group, [a, b]) is expected
+            outcomes[expected] += 1
+        for a in free[:8]:  # free paths: most points certified by their block's middle point
+            b = a + 0.05 * (np.clip(a + rng.uniform(-0.3, 0.3, 7), g.lower, g.upper) - a)
+            dense = space.densify([a, b], step)
+            if all(map(check, dense)):
+                del plain_checks[:]
+                assert geo.fine_ok(world.with_arm(arm, a), group, [a, b])
+                points, free_points = points + len(dense), free_points + len(plain_checks)
+    assert outcomes[True] > 10 and outcomes[False] > 10  # both kinds of grazing paths were tried
+    assert points > 50 and free_points < 0.5 * points

@@ -16,6 +16,7 @@ with a small gap (e.g. 1 mm) or pass the support in ``ignore``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Callable, Iterable, Sequence
 
@@ -28,7 +29,7 @@ from .robot import ARMS, PR2, as_se3
 __all__ = ["CollisionWorld", "WorldObject", "Attachment"]
 
 DEFAULT_COLOR = (0.7, 0.7, 0.7, 1.0)
-_MAX_SLOTS = 4
+_MAX_SLOTS = 6
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,12 +78,13 @@ class _Obj:
 
 
 class _Variant:
-    """A cached pair-activation mask; ``version`` ties it to the world state it was built for."""
+    """A cached pair-activation mask and the security margin of its checks; ``version`` ties it to
+    the world state it was built for."""
 
-    __slots__ = ("key", "mask", "version")
+    __slots__ = ("key", "mask", "version", "margin")
 
-    def __init__(self, key, mask, version):
-        self.key, self.mask, self.version = key, mask, version
+    def __init__(self, key, mask, version, margin=0.0):
+        self.key, self.mask, self.version, self.margin = key, mask, version, margin
 
 
 class _Slot:
@@ -92,13 +94,14 @@ class _Slot:
     ``colliding_movables``) does not re-toggle hundreds of pairs on every call.
     """
 
-    __slots__ = ("gd", "manager", "variant", "mask")
+    __slots__ = ("gd", "gm", "manager", "variant", "mask", "margin")
 
     def __init__(self, model, gm):
-        self.gd = pin.GeometryData(gm)
+        self.gd, self.gm = pin.GeometryData(gm), gm
         self.manager = pin.BroadPhaseManager_NaiveCollisionManager(model, gm, self.gd)
         self.variant: _Variant | None = None
         self.mask = np.ones(len(gm.collisionPairs), dtype=bool)  # GeometryData starts all-active
+        self.margin = 0.0
 
     def apply(self, variant: _Variant) -> None:
         for k in np.flatnonzero(self.mask != variant.mask).tolist():
@@ -106,7 +109,10 @@ class _Slot:
                 self.gd.activateCollisionPair(k)
             else:
                 self.gd.deactivateCollisionPair(k)
-        self.mask, self.variant = variant.mask, variant
+        if variant.margin != self.margin:  # also widens the broad phase's boxes by as much
+            n = self.gm.ngeoms
+            self.gd.setSecurityMargins(self.gm, np.full((n, n), variant.margin), True, True)
+        self.mask, self.variant, self.margin = variant.mask, variant, variant.margin
 
 
 class CollisionWorld:
@@ -123,6 +129,7 @@ class CollisionWorld:
         self._slots: list[_Slot] = []  # most recently used first
         self._request = coal.CollisionRequest()
         self._local_boxes = {}  # id(geometry) -> (its local AABB's corners, geometry)
+        self._bounds = {}  # group -> (version, motion_bound)
         self._hands = {}  # (arm, finger angle) -> [(hand geometry, its pose in the tool frame)]
         self._tool_joint = {arm: robot.model.frames[robot.model.getFrameId(robot.tool_frame(arm))].parentJoint
                             for arm in ARMS}
@@ -266,7 +273,7 @@ class CollisionWorld:
                 for a, b in self._colliding_pairs(q, ("check", None, frozenset(ignore), bool(movables)))]
 
     def checker_for(self, group: str, q_fixed, ignore: Iterable[str] = frozenset(),
-                    movables: bool = True) -> Callable[[Sequence[float]], bool]:
+                    movables: bool = True, margin: float = 0.0) -> Callable[[Sequence[float]], bool]:
         """Fast ``is_valid(vector) -> bool`` for planning ``group`` with the rest of ``q_fixed`` frozen.
 
         Writes the group vector into a private copy of ``q_fixed`` and checks only
@@ -275,10 +282,11 @@ class CollisionWorld:
         objects against the environment (self pairs are rigid then).  Pairs that
         cannot change are assumed fine, so ``q_fixed`` itself should be valid.
         Object poses are read live; the checker follows add/remove/attach/detach.
-        Not re-entrant: shares the world's Pinocchio data.
+        Not re-entrant: shares the world's Pinocchio data. With a ``margin`` (m), bodies closer than
+        that count as colliding (see ``motion_bound``).
         """
         g = self.robot.group(group)
-        key = ("check", group, frozenset(ignore), bool(movables))
+        key = ("check", group, frozenset(ignore), bool(movables)) + ((float(margin),) if margin else ())
         write, compute = g.write, pin.computeCollisions
         model, data, q = self._model, self._data, np.array(q_fixed, dtype=float)
         slot = self._use(key)
@@ -293,6 +301,43 @@ class CollisionWorld:
             return not compute(model, data, slot.manager, q, True)
 
         return is_valid
+
+    def motion_bound(self, group: str) -> float:
+        """How much (m) the distance between the two bodies of any pair that ``group``'s checker checks
+        can shrink per unit of group-vector distance (joint-space Euclidean, rad or m), anywhere: so a
+        configuration clear of everything by ``margin`` has every configuration within ``margin / bound``
+        of it collision-free. Infinite for joint types it does not know.
+
+        A pair's relative pose changes only through the group joints between its bodies, and a point
+        moved by revolute joint i moves at most rho_i per rad, rho_i bounding its distance from the
+        joint's origin: the joint offsets down the chain to the body's joint plus the body's bounding
+        sphere (held objects included). Cauchy-Schwarz turns sum(rho_i |dq_i|) into a bound on |dq|.
+        A planar joint moves a point at most |d(x, y)| + rho |d theta|."""
+        if self._needs_build:
+            self._build()
+        cached = self._bounds.get(group)
+        if cached is not None and cached[0] == self._version:  # held objects change it
+            return cached[1]
+        model, supports = self._model, self._model.supports
+        bodies = [(go.parentJoint, np.linalg.norm(go.placement.act(go.geometry.aabb_center)) + go.geometry.aabb_radius)
+                  for go in self._gm.geometryObjects if go.parentJoint > 0]  # robot links and held objects
+        total = 0.0
+        for i in self.robot.group(group).joint_ids:
+            rho = 0.0
+            for j, extent in bodies:
+                chain = list(supports[j])
+                if i in chain:
+                    offsets = sum(np.linalg.norm(model.jointPlacements[k].translation) for k in chain[chain.index(i) + 1:])
+                    rho = max(rho, offsets + extent)
+            kind = model.joints[i].shortname()
+            if kind == "JointModelPlanar":
+                total += 1.0 + rho * rho  # (|d(x, y)| + rho |d theta|)^2 <= (1 + rho^2) |d(x, y, theta)|^2
+            elif kind.startswith("JointModelR"):  # revolute: RX..RZ, unbounded RUB*, RevoluteUnaligned
+                total += rho * rho
+            else:
+                total = math.inf
+        self._bounds[group] = (self._version, math.sqrt(total))
+        return self._bounds[group][1]
 
     def clearances(self, q, group: str, margin: float, movables: bool = True,
                    ignore: Iterable[str] = frozenset()) -> dict[str, tuple[float, np.ndarray]]:
@@ -527,7 +572,7 @@ class CollisionWorld:
         if v is None or v.version != self._version:
             if v is not None or len(self._variants) > 64:
                 self._variants = {k: x for k, x in self._variants.items() if x.version == self._version}
-            v = self._variants[key] = _Variant(key, self._mask(*key), self._version)
+            v = self._variants[key] = _Variant(key, self._mask(*key[:4]), self._version, *key[4:])
         return v
 
     def _use(self, key) -> _Slot:

@@ -324,3 +324,36 @@ def test_timing_report(robot):
         report[f"checker_for({group})"] = (time.perf_counter() - t) / len(values)
     print("\n" + ", ".join(f"{k}: {v * 1e6:.1f} us" for k, v in report.items()))
     assert full < 1e-3
+
+
+def test_motion_bound_bounds_how_far_any_body_moves(robot):
+    """No point of a robot link or held object moves further than motion_bound x the group-vector
+    distance: single-joint moves of an outstretched arm, with and without a long stick in the hand,
+    and base moves."""
+    world = CollisionWorld(robot)
+    q0 = robot.set(robot.neutral_q(), "left_arm", [0.3, 0.0, 0.0, -0.2, 0.0, -0.2, 0.0])  # stretched out
+
+    def corners(q):  # corners of every moving geometry's local bounding box, in the world
+        gm = world._gm
+        gd = pin.GeometryData(gm)
+        pin.updateGeometryPlacements(robot.model, robot.model.createData(), gm, gd, q)
+        return np.array([gd.oMg[k].act(np.array([x, y, z])) for k, go in enumerate(gm.geometryObjects)
+                         if go.parentJoint > 0 for box in [go.geometry.aabb_local]
+                         for x in (box.min_[0], box.max_[0]) for y in (box.min_[1], box.max_[1])
+                         for z in (box.min_[2], box.max_[2])])
+
+    for stick in (False, True):
+        if stick:
+            world.add_box("stick", (2.5, 0.02, 0.02), robot.tool_pose(q0, "left") @ translation(1.2, 0, 0), movable=True)
+            world.attach("stick", "left", q0)
+        for group in ("left_arm", "base"):
+            bound = world.motion_bound(group)
+            g = robot.group(group)
+            v0, worst = g.get(q0), 0.0
+            for i in range(g.dof):
+                dv = np.zeros(g.dof)
+                dv[i] = 0.01
+                worst = max(worst, np.linalg.norm(corners(g.set(q0, v0 + dv)) - corners(q0), axis=1).max() / 0.01)
+            assert worst <= bound
+            if group != "base":  # not a vacuous bound (the base's counts every link stretched out)
+                assert worst > bound / np.sqrt(g.dof)
