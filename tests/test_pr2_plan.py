@@ -244,7 +244,8 @@ def test_the_blockwise_fine_check_agrees_with_checking_every_point():
     """fine_ok certifies a block of points by its middle one, checked with a margin that covers how far
     any body moves within the block. Paths of one block whose middle point grazes an obstacle (the
     cubby, the table, the robot itself) are accepted exactly when every point is collision-free; on
-    free paths most points are checked only through their block's middle one."""
+    free paths most points are checked only through their block's middle one; along an obstacle, the
+    margin is not tried at every block."""
     import numpy as np
 
     from interlayer.api import prepare
@@ -256,13 +257,16 @@ def test_the_blockwise_fine_check_agrees_with_checking_every_point():
     plain_checks = []
     checker_for = geo.cw.checker_for
 
+    margin_checks = []
+
     def counting_checker_for(*args, margin=0.0, **kw):
         check = checker_for(*args, margin=margin, **kw)
-        return check if margin else (lambda v: plain_checks.append(1) or check(v))
+        counts = margin_checks if margin else plain_checks
+        return lambda v: counts.append(1) or check(v)
 
     geo.cw.checker_for = counting_checker_for
     outcomes = {True: 0, False: 0}
-    points = free_points = 0
+    points = free_points = near = 0
     for group in ("right_arm", "left_arm"):
         arm, g = group.split("_")[0], geo.robot.group(group)
         space = geo.arm_space[arm]
@@ -283,8 +287,14 @@ def test_the_blockwise_fine_check_agrees_with_checking_every_point():
             if not (check(mid) and g.within_bounds(a) and g.within_bounds(b)):
                 continue
             expected = all(map(check, space.densify([a, b], step)))
+            del plain_checks[:]
             assert geo.fine_ok(world.with_arm(arm, a), group, [a, b]) is expected
             outcomes[expected] += 1
+            if expected and len(plain_checks) == FINE_BLOCK:  # free, but too close to certify at once:
+                del margin_checks[:]  # back and forth along it, the margin is tried only now and then
+                assert geo.fine_ok(world.with_arm(arm, a), group, [a, b] * 6)
+                near += 1
+                assert len(margin_checks) <= 0.5 * len(space.densify([a, b] * 6, step)) / FINE_BLOCK
         for a in free[:8]:  # free paths: most points certified by their block's middle point
             b = a + 0.05 * (np.clip(a + rng.uniform(-0.3, 0.3, 7), g.lower, g.upper) - a)
             dense = space.densify([a, b], step)
@@ -292,5 +302,5 @@ def test_the_blockwise_fine_check_agrees_with_checking_every_point():
                 del plain_checks[:]
                 assert geo.fine_ok(world.with_arm(arm, a), group, [a, b])
                 points, free_points = points + len(dense), free_points + len(plain_checks)
-    assert outcomes[True] > 10 and outcomes[False] > 10  # both kinds of grazing paths were tried
+    assert outcomes[True] > 10 and outcomes[False] > 10 and near > 3  # every kind of grazing path was tried
     assert points > 50 and free_points < 0.5 * points

@@ -34,6 +34,7 @@ RES_BASE = 0.01  # m / rad between collision checks when planning the base
 # Paths are re-checked at the validator's resolution in blocks of this many points, each block at
 # once by its middle point with a margin (fine_ok); MARGIN_SLACK (m) covers Coal's distance tolerance.
 FINE_BLOCK, MARGIN_SLACK = 5, 1e-4
+FINE_WAIT = 2  # blocks checked point by point after a block's middle point was too close to something
 PRE_GRASP = 0.20  # back-off of the pre-grasp along the tool x axis (approach and retreat length)
 LIFT = 0.05  # raise after grasping / height above the put-down spot
 OPEN_CLEARANCE = 0.01  # m: a gripper about to grasp or let go opens this much wider than the object (5 mm a side)
@@ -533,10 +534,16 @@ class PR2Geometry:
         points = space.densify(list(path), step)
         margin = self.cw.motion_bound(group) * step * (FINE_BLOCK // 2) + MARGIN_SLACK
         clear = self.cw.checker_for(group, q, margin=margin) if math.isfinite(margin) else None
-        ok = True
+        ok, wait = True, 0
         for k in range(0, len(points), FINE_BLOCK):
             block = points[k:k + FINE_BLOCK]
-            if not (clear is not None and clear(block[len(block) // 2])) and not all(map(check, block)):
+            if clear is not None and not wait:
+                if clear(block[len(block) // 2]):
+                    continue
+                wait = FINE_WAIT  # near something: the next blocks probably are too, check them point by point
+            else:
+                wait = max(0, wait - 1)
+            if not all(map(check, block)):
                 ok = False
                 break
         if acc is not None:
