@@ -262,7 +262,7 @@ class CollisionWorld:
         key = ("movables", None, frozenset(ignore), True)
         q = _as_q(q)
         if not pin.computeCollisions(self._model, self._data, self._use(key).manager, q, True):
-            return set()  # the usual answer, at the cost of one check: collecting every pair costs 1.5 checks
+            return set()  # the usual answer, for the price of one check (collecting the pairs costs more)
         pairs = self._colliding_pairs(q, key)
         return {self._gm.geometryObjects[b].name for _, b in pairs}
 
