@@ -525,7 +525,7 @@ class PR2Geometry:
         Its points are taken FINE_BLOCK at a time: no point of a block is more than FINE_BLOCK // 2
         steps from the middle one, so if the middle one is clear of everything by the distance a body
         can move in that many steps (``CollisionWorld.motion_bound``), the whole block is collision-free;
-        otherwise each of its points is checked, and so are the next FINE_WAIT blocks'."""
+        otherwise each of its points is checked, and so are the next FINE_WAIT blocks."""
         q = self.sync(world)
         check = self.cw.checker_for(group, q)
         space = self.base_space if group == "base" else self.arm_space[group.split("_")[0]]
