@@ -6,6 +6,7 @@ import functools
 import importlib
 import logging
 import multiprocessing
+import os
 import sys
 import tempfile
 import time
@@ -82,6 +83,7 @@ class UPTaskPlanner(TaskPlanner):
     params: dict = field(default_factory=dict)
     fallbacks: tuple = ()  # further params to try when the engine fails without proof (FF's EHC -> GBFS)
     validate: str = "final"  # UP's validator on "every" plan, the "final" one, or "off"
+    warm: bool = True  # Fast Downward engines: run the driver in a warm process (warm.py), not a new Python per call
     _builders: dict = field(default_factory=dict)
 
     def _builder(self, model):
@@ -95,6 +97,9 @@ class UPTaskPlanner(TaskPlanner):
     def prepare(self, model):
         _quiet_environment()
         self._builder(model).problem_for(model.init)
+        if self.warm and self.engine not in UNBOUNDED_ENGINES:
+            with _engine(self.engine, self.params) as engine:
+                _warm_driver(engine)  # started now, before the run's clock
 
     def _plan(self, model, state, timeout):
         _quiet_environment()
@@ -108,7 +113,7 @@ class UPTaskPlanner(TaskPlanner):
             if self.engine in UNBOUNDED_ENGINES:
                 status, plan, reason = _solve_in_child(self.engine, params, problem, left)
             else:
-                status, plan, reason = _solve(self.engine, params, problem, left)
+                status, plan, reason = _solve(self.engine, params, problem, left, self.warm)
             if status != "incomplete":
                 break
         if status == "incomplete":
@@ -252,7 +257,55 @@ def _sparse_problem_class():
     return SparseProblem
 
 
-def _solve(engine_name, params, problem, timeout):
+def _warm_driver(engine):
+    """The warm process for a Fast Downward engine (None for other engines, or if it cannot start)."""
+    from . import warm
+
+    if not type(engine).__module__.startswith("up_fast_downward."):
+        return None
+    cmd = engine._base_cmd("plan.txt")
+    if cmd[0] != sys.executable or not str(cmd[1]).endswith("fast-downward.py"):
+        return None
+    driver = warm.driver_for(str(cmd[1]))
+    if driver.broken:
+        return None
+    try:
+        driver.start()
+    except warm.WorkerFailed as exc:  # it is marked broken
+        log.warning("%s; every Fast Downward call runs its own driver instead.", exc)
+        return None
+    _run_command_hook()
+    return driver
+
+
+@functools.cache
+def _run_command_hook():
+    """Unified-Planning runs a PDDL engine's command with ``pddl_planner.run_command(engine, cmd, ...)``;
+    for an engine that carries a warm driver (``engine.warm_driver``) that process runs it instead.
+    Everything else (the files, the engine's own ``_solve``, plan reading, exit codes) stays UP's."""
+    from unified_planning.engines import pddl_planner
+
+    from .warm import WorkerFailed
+
+    original = pddl_planner.run_command
+
+    def run_command(engine, cmd, output_stream=None, timeout=None):
+        driver = getattr(engine, "warm_driver", None)
+        if driver is None or output_stream is not None:
+            return original(engine, cmd, output_stream=output_stream, timeout=timeout)
+        start = time.perf_counter()
+        try:
+            return driver.run(cmd, os.getcwd(), timeout)
+        except WorkerFailed as exc:
+            log.warning("%s; Fast Downward's own driver runs this call instead.", exc)
+        left = None if timeout is None else max(0.0, timeout - (time.perf_counter() - start))
+        return original(engine, cmd, output_stream=output_stream, timeout=left)
+
+    pddl_planner.run_command = run_command
+    return run_command
+
+
+def _solve(engine_name, params, problem, timeout, warm=False):
     from unified_planning.engines import PlanGenerationResultStatus as S
 
     # Fast Downward's driver writes output.sas into the working directory: concurrent runs in one
@@ -264,6 +317,8 @@ def _solve(engine_name, params, problem, timeout):
             return "error", None, f"the engine '{engine_name}' cannot handle this problem's features ({sorted(kind.features)})"
         if not chain:
             compiled.__class__ = _sparse_problem_class()  # our own clone: only the PDDL writer reads it
+        if warm:
+            engine.warm_driver = _warm_driver(engine)
         res = engine.solve(compiled, timeout=timeout)
     if res.status in (S.SOLVED_SATISFICING, S.SOLVED_OPTIMALLY) and res.plan is not None:
         plan = res.plan
