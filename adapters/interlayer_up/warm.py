@@ -18,7 +18,7 @@ from pathlib import Path
 
 WORKER = str(Path(__file__).with_name("fd_worker.py"))
 START_TIMEOUT = 60.0  # importing the driver and the translator takes about 0.1 s
-STOP_GRACE = 5.0  # after killing a request at its deadline, how long the worker has to report it
+STOP_GRACE = 5.0  # how long the worker has to report a started or a stopped request
 
 log = logging.getLogger("interlayer")
 
@@ -78,7 +78,7 @@ class WarmDriver:
                 raise WorkerFailed(self._stopped()) from None
             timed_out = False
             try:
-                child = self._answer(deadline)["pid"]  # at once: the worker forks and answers
+                child = self._answer(time.monotonic() + STOP_GRACE)["pid"]  # at once: it forks and answers
                 try:
                     code = self._answer(deadline)["exit"]
                 except TimeoutError:
