@@ -184,3 +184,20 @@ def test_a_request_to_a_dead_warm_process_runs_the_driver_instead(host, monkeypa
         "driver runs this call instead."]
     monkeypatch.undo()
     assert _driver(planner).alive  # the next call starts a new one
+
+
+def test_the_dumped_pddl_is_what_fast_downward_got(host, tmp_path, monkeypatch):
+    model = corridor(30)  # its initial atoms come in another order than UP's groundings
+    planner = host["task_planners"].get("fast-downward").factory({})
+    planner.pddl_dir = tmp_path / "pddl"
+    driver = _driver(planner)
+    got = []
+    run = driver.run
+
+    def reading_the_problem(cmd, cwd, timeout):
+        got.append(Path(cmd[-1]).read_text())
+        return run(cmd, cwd, timeout)
+
+    monkeypatch.setattr(driver, "run", reading_the_problem)
+    assert planner.plan(model, model.init, 30).status == "solved"
+    assert got == [(tmp_path / "pddl" / "call-001-problem.pddl").read_text()]

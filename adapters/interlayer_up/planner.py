@@ -82,7 +82,10 @@ class UPTaskPlanner(TaskPlanner):
     engine: str = "fast-downward"
     params: dict = field(default_factory=dict)
     fallbacks: tuple = ()  # further params to try when the engine fails without proof (FF's EHC -> GBFS)
-    validate: str = "final"  # UP's validator on "every" plan, the "final" one, or "off"
+    # UP's SequentialPlanValidator on "every" plan, the "final" one, or "off". Off by default: every plan
+    # is replayed with the core's semantics anyway (TaskPlanner.plan, the loop's final check and
+    # `interlayer validate`), and UP's simulator grounds forall effects at each step (0.02-0.4 s a plan).
+    validate: str = "off"
     warm: bool = True  # Fast Downward engines: run the driver in a warm process (warm.py), not a new Python per call
     _builders: dict = field(default_factory=dict)
 
@@ -151,6 +154,8 @@ def _dump_pddl(problem, folder, call: int) -> None:
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
+    problem = problem.clone()
+    problem.__class__ = _sparse_problem_class()  # the engine's view (and not seconds for big reference sets)
     writer = PDDLWriter(problem)
     writer.write_domain(str(folder / f"call-{call:03d}-domain.pddl"))
     writer.write_problem(str(folder / f"call-{call:03d}-problem.pddl"))

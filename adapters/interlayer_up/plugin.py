@@ -20,7 +20,7 @@ def _factory(name, default_params):
         from .planner import FF_SEARCHES, UPTaskPlanner
 
         opts = dict(options)
-        validate = opts.pop("validate", "final")
+        validate = opts.pop("validate", "off")
         if validate not in ("every", "final", "off"):
             from interlayer.errors import UserError
 
