@@ -111,3 +111,13 @@ def test_fast_downward_reads_its_plans_with_one_reader(host, monkeypatch):
     for _ in range(3):
         assert planner.plan(model, model.init, 30).status == "solved"
     assert len(made) <= 1
+
+
+def test_the_plan_reader_is_made_before_the_runs_clock_starts(host):
+    from interlayer_up.planner import _plan_reader
+
+    model = corridor()
+    planner = host["task_planners"].get("fast-downward").factory({})
+    _plan_reader.cache_clear()
+    planner.prepare(model)
+    assert _plan_reader.cache_info().currsize == 1

@@ -98,11 +98,16 @@ class UPTaskPlanner(TaskPlanner):
         return self._builders[key]
 
     def prepare(self, model):
-        _quiet_environment()
+        env = _quiet_environment()
+        from unified_planning.engines.pddl_planner import PDDLPlanner
+
         self._builder(model).problem_for(model.init)
-        if self.warm and self.engine not in UNBOUNDED_ENGINES:
-            with _engine(self.engine, self.params) as engine:
-                _warm_driver(engine)  # started now, before the run's clock
+        if self.engine not in UNBOUNDED_ENGINES:
+            with _engine(self.engine, self.params) as engine:  # made now, before the run's clock:
+                if isinstance(engine, PDDLPlanner):
+                    _plan_reader(env)  # its plan reader (a pyparsing grammar, 30-100 ms)
+                if self.warm:
+                    _warm_driver(engine)  # and its warm process
 
     def _plan(self, model, state, timeout):
         _quiet_environment()
