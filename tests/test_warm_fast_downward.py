@@ -201,3 +201,10 @@ def test_the_dumped_pddl_is_what_fast_downward_got(host, tmp_path, monkeypatch):
     monkeypatch.setattr(driver, "run", reading_the_problem)
     assert planner.plan(model, model.init, 30).status == "solved"
     assert got == [(tmp_path / "pddl" / "call-001-problem.pddl").read_text()]
+
+
+def test_a_warm_option_that_is_not_a_boolean_is_a_user_error(host):
+    from interlayer.errors import UserError
+
+    with pytest.raises(UserError, match=r"^task_planner.fast-downward.warm must be true or false, got 'yes'.$"):
+        host["task_planners"].get("fast-downward").factory({"warm": "yes"})
