@@ -141,6 +141,9 @@ class UPTaskPlanner(TaskPlanner):
         """Check a plan with Unified-Planning's own SequentialPlanValidator."""
         if self.validate == "off":
             return super().validate_plan(model, state, plan)
+        return self.library_check(model, state, plan)
+
+    def library_check(self, model, state, plan) -> str:
         _quiet_environment()
         from unified_planning.plans import ActionInstance, SequentialPlan
 
