@@ -35,6 +35,22 @@ def test_plan_json_is_alone_on_stdout_and_matches_the_api(tmp_path):
     assert code == 0 and json.loads(out)["seed"] == 0
 
 
+def test_validate_asks_the_task_planners_library_for_a_second_opinion(tmp_path):
+    run = tmp_path / "run"
+    code, out, err = cli("plan", "examples/gripper2d.toml", "-q", "--out", str(run))
+    assert code == 0, err
+    code, out, err = cli("validate", str(run), "--json")
+    report = json.loads(out)
+    assert code == 0 and report["valid"], err
+    assert "task plan re-checked by the task planner's library (fast-downward)" in report["checked"]
+    result = json.loads((run / "result.json").read_text())
+    result["plan"] = result["plan"][1:]  # the first pick dropped: the rest cannot run
+    (run / "result.json").write_text(json.dumps(result))
+    code, out, err = cli("validate", str(run), "--json")
+    violations = json.loads(out)["violations"]
+    assert code == 1 and any("UP's validator rejected the plan" in v for v in violations), violations
+
+
 def test_unsolved_run_still_prints_json_and_exits_1(tmp_path):
     code, out, err = cli("plan", "examples/gripper2d.toml", "--json", "--set", "planner.time_limit=0.5",
                          "--set", "planner.motion=interpolate", "--set", "problem.obstructions=5")

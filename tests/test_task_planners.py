@@ -49,10 +49,18 @@ def test_custom_search_string_and_unsolvable_state(host):
 
 def test_up_validator_checks_final_plans(host):
     model = corridor()
+    planner = host["task_planners"].get("fast-downward").factory({"validate": "final"})
+    plan = planner.plan(model, model.init, 30).plan
+    assert planner.validate_plan(model, model.init, plan) == ""
+    assert "UP's validator rejected" in planner.validate_plan(model, model.init, plan[1:])
+
+
+def test_by_default_final_plans_are_replayed_with_the_cores_semantics(host):
+    model = corridor()
     planner = host["task_planners"].get("fast-downward").factory({})
     plan = planner.plan(model, model.init, 30).plan
     assert planner.validate_plan(model, model.init, plan) == ""
-    assert "rejected" in planner.validate_plan(model, model.init, plan[1:])
+    assert planner.validate_plan(model, model.init, plan[1:]) == check_plan(model, model.init, plan[1:]) != ""
 
 
 def test_unified_planning_loads_without_configspace_and_scipy_stats():
@@ -103,3 +111,13 @@ def test_fast_downward_reads_its_plans_with_one_reader(host, monkeypatch):
     for _ in range(3):
         assert planner.plan(model, model.init, 30).status == "solved"
     assert len(made) <= 1
+
+
+def test_the_plan_reader_is_made_before_the_runs_clock_starts(host):
+    from interlayer_up.planner import _plan_reader
+
+    model = corridor()
+    planner = host["task_planners"].get("fast-downward").factory({})
+    _plan_reader.cache_clear()
+    planner.prepare(model)
+    assert _plan_reader.cache_info().currsize == 1

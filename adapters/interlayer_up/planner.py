@@ -6,6 +6,7 @@ import functools
 import importlib
 import logging
 import multiprocessing
+import os
 import sys
 import tempfile
 import time
@@ -81,7 +82,11 @@ class UPTaskPlanner(TaskPlanner):
     engine: str = "fast-downward"
     params: dict = field(default_factory=dict)
     fallbacks: tuple = ()  # further params to try when the engine fails without proof (FF's EHC -> GBFS)
-    validate: str = "final"  # UP's validator on "every" plan, the "final" one, or "off"
+    # UP's SequentialPlanValidator on "every" plan, the "final" one, or "off". Off by default: every plan
+    # is replayed with the core's semantics anyway (TaskPlanner.plan, the loop's final check and
+    # `interlayer validate`), and UP's simulator grounds forall effects at each step (0.02-0.4 s a plan).
+    validate: str = "off"
+    warm: bool = True  # Fast Downward engines: run the driver in a warm process (warm.py), not a new Python per call
     _builders: dict = field(default_factory=dict)
 
     def _builder(self, model):
@@ -93,8 +98,16 @@ class UPTaskPlanner(TaskPlanner):
         return self._builders[key]
 
     def prepare(self, model):
-        _quiet_environment()
+        env = _quiet_environment()
+        from unified_planning.engines.pddl_planner import PDDLPlanner
+
         self._builder(model).problem_for(model.init)
+        if self.engine not in UNBOUNDED_ENGINES:
+            with _engine(self.engine, self.params) as engine:  # made now, before the run's clock:
+                if isinstance(engine, PDDLPlanner):
+                    _plan_reader(env)  # its plan reader (a pyparsing grammar, 30-100 ms)
+                if self.warm:
+                    _warm_driver(engine)  # and its warm process
 
     def _plan(self, model, state, timeout):
         _quiet_environment()
@@ -108,7 +121,7 @@ class UPTaskPlanner(TaskPlanner):
             if self.engine in UNBOUNDED_ENGINES:
                 status, plan, reason = _solve_in_child(self.engine, params, problem, left)
             else:
-                status, plan, reason = _solve(self.engine, params, problem, left)
+                status, plan, reason = _solve(self.engine, params, problem, left, self.warm)
             if status != "incomplete":
                 break
         if status == "incomplete":
@@ -128,6 +141,9 @@ class UPTaskPlanner(TaskPlanner):
         """Check a plan with Unified-Planning's own SequentialPlanValidator."""
         if self.validate == "off":
             return super().validate_plan(model, state, plan)
+        return self.library_check(model, state, plan)
+
+    def library_check(self, model, state, plan) -> str:
         _quiet_environment()
         from unified_planning.plans import ActionInstance, SequentialPlan
 
@@ -146,6 +162,8 @@ def _dump_pddl(problem, folder, call: int) -> None:
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
+    problem = problem.clone()
+    problem.__class__ = _sparse_problem_class()  # the engine's view (and not seconds for big reference sets)
     writer = PDDLWriter(problem)
     writer.write_domain(str(folder / f"call-{call:03d}-domain.pddl"))
     writer.write_problem(str(folder / f"call-{call:03d}-problem.pddl"))
@@ -252,7 +270,55 @@ def _sparse_problem_class():
     return SparseProblem
 
 
-def _solve(engine_name, params, problem, timeout):
+def _warm_driver(engine):
+    """The warm process for a Fast Downward engine (None for other engines, or if it cannot start)."""
+    from . import warm
+
+    if not type(engine).__module__.startswith("up_fast_downward."):
+        return None
+    cmd = engine._base_cmd("plan.txt")
+    if cmd[0] != sys.executable or not str(cmd[1]).endswith("fast-downward.py"):
+        return None
+    driver = warm.driver_for(str(cmd[1]))
+    if driver.broken:
+        return None
+    try:
+        driver.start()
+    except warm.WorkerFailed as exc:  # it is marked broken
+        log.warning("%s; every Fast Downward call runs its own driver instead.", exc)
+        return None
+    _run_command_hook()
+    return driver
+
+
+@functools.cache
+def _run_command_hook():
+    """Unified-Planning runs a PDDL engine's command with ``pddl_planner.run_command(engine, cmd, ...)``;
+    for an engine that carries a warm driver (``engine.warm_driver``) that process runs it instead.
+    Everything else (the files, the engine's own ``_solve``, plan reading, exit codes) stays UP's."""
+    from unified_planning.engines import pddl_planner
+
+    from .warm import WorkerFailed
+
+    original = pddl_planner.run_command
+
+    def run_command(engine, cmd, output_stream=None, timeout=None):
+        driver = getattr(engine, "warm_driver", None)
+        if driver is None or output_stream is not None:
+            return original(engine, cmd, output_stream=output_stream, timeout=timeout)
+        start = time.perf_counter()
+        try:
+            return driver.run(cmd, os.getcwd(), timeout)
+        except WorkerFailed as exc:
+            log.warning("%s; Fast Downward's own driver runs this call instead.", exc)
+        left = None if timeout is None else max(0.0, timeout - (time.perf_counter() - start))
+        return original(engine, cmd, output_stream=output_stream, timeout=left)
+
+    pddl_planner.run_command = run_command
+    return run_command
+
+
+def _solve(engine_name, params, problem, timeout, warm=False):
     from unified_planning.engines import PlanGenerationResultStatus as S
 
     # Fast Downward's driver writes output.sas into the working directory: concurrent runs in one
@@ -264,6 +330,8 @@ def _solve(engine_name, params, problem, timeout):
             return "error", None, f"the engine '{engine_name}' cannot handle this problem's features ({sorted(kind.features)})"
         if not chain:
             compiled.__class__ = _sparse_problem_class()  # our own clone: only the PDDL writer reads it
+        if warm:
+            engine.warm_driver = _warm_driver(engine)
         res = engine.solve(compiled, timeout=timeout)
     if res.status in (S.SOLVED_SATISFICING, S.SOLVED_OPTIMALLY) and res.plan is not None:
         plan = res.plan

@@ -20,11 +20,16 @@ def _factory(name, default_params):
         from .planner import FF_SEARCHES, UPTaskPlanner
 
         opts = dict(options)
-        validate = opts.pop("validate", "final")
+        validate = opts.pop("validate", "off")
         if validate not in ("every", "final", "off"):
             from interlayer.errors import UserError
 
             raise UserError(f"task_planner.{name}.validate must be 'every', 'final' or 'off', got {validate!r}.")
+        warm = opts.pop("warm", True)
+        if not isinstance(warm, bool):
+            from interlayer.errors import UserError
+
+            raise UserError(f"task_planner.{name}.warm must be true or false, got {warm!r}.")
         fallbacks = ()
         if name == "ff":
             engine, params = "fast-downward", {"fast_downward_search_config": FF_SEARCHES[0]}
@@ -41,8 +46,8 @@ def _factory(name, default_params):
         if opts:
             from interlayer.errors import UserError
 
-            raise UserError(f"Unknown option(s) {sorted(opts)} for task planner '{name}'; valid: search, alias, params, validate.")
-        return UPTaskPlanner(name=name, engine=engine, params=params, fallbacks=fallbacks, validate=validate)
+            raise UserError(f"Unknown option(s) {sorted(opts)} for task planner '{name}'; valid: search, alias, params, validate, warm.")
+        return UPTaskPlanner(name=name, engine=engine, params=params, fallbacks=fallbacks, validate=validate, warm=warm)
 
     return make
 

@@ -81,11 +81,15 @@ def build_problem(host: PluginHost, config: dict):
 
 
 def make_planners(host: PluginHost, config: dict, stats: Stats):
-    p = config["planner"]
-    task_comp = host["task_planners"].get(p["task"])
-    with blame(task_comp.plugin, task_comp.label):
-        task = task_comp.factory(dict(config["task_planner"].get(p["task"], {})))
-    return _TaskPlannerGuard(task, task_comp), make_motion_planner(host, config, p["motion"], stats)
+    return make_task_planner(host, config), make_motion_planner(host, config, config["planner"]["motion"], stats)
+
+
+def make_task_planner(host: PluginHost, config: dict):
+    name = config["planner"]["task"]
+    comp = host["task_planners"].get(name)
+    with blame(comp.plugin, comp.label):
+        task = comp.factory(dict(config["task_planner"].get(name, {})))
+    return _TaskPlannerGuard(task, comp)
 
 
 def make_motion_planner(host: PluginHost, config: dict, name: str, stats: Stats):
@@ -105,7 +109,7 @@ class _TaskPlannerGuard(Guarded):
     """A task planner whose exceptions, and answers with status "error", name its plugin."""
 
     def __init__(self, task, comp):
-        super().__init__(task, comp.plugin, comp.label, ("plan", "validate_plan"))
+        super().__init__(task, comp.plugin, comp.label, ("plan", "validate_plan", "library_check"))
 
     def plan(self, model, state, timeout):
         plugin, component, _ = self._guard
@@ -299,6 +303,12 @@ def validation(out_dir, host: PluginHost | None = None) -> Validation:
     why = check_plan(model, model.init, plan)
     if why:
         violations.append(f"task plan: {why}")
+    library_check = getattr(make_task_planner(host, config), "library_check", None)  # duck-typed planners may lack it
+    why = library_check(model, model.init, plan) if library_check else None
+    if why is not None:
+        checked.append(f"task plan re-checked by the task planner's library ({config['planner']['task']})")
+        if why:
+            violations.append(f"task plan: {why}")
     if not (out / "trajectory.json").exists():
         return Validation(violations + ["no trajectory.json: the geometric refinement cannot be checked"], checked)
     trajectory = _read_json(out / "trajectory.json")

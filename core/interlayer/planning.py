@@ -52,6 +52,11 @@ class TaskPlanner:
         """A second opinion on a final plan ('' if valid); adapters may use their library's validator."""
         return check_plan(model, state, plan)
 
+    def library_check(self, model: TaskModel, state: frozenset, plan) -> str | None:
+        """The planner library's own plan validator ('' if valid), independent of the core's replay;
+        None when the library has none. ``interlayer validate`` runs it beside the replay."""
+        return None
+
 
 def check_plan(model: TaskModel, state: frozenset, plan) -> str:
     """Replay a plan with the core's own semantics; '' if it reaches the goal, else why not."""
