@@ -151,20 +151,71 @@ def test_put_downs_keep_clear_of_the_approaches_ranked_in_the_epoch(host):
     assert all(np.hypot(x - best[0], y - best[1]) >= CORRIDOR for x, y in spots())
 
 
-def test_when_the_roomy_spots_lie_on_known_approaches_tighter_ones_are_offered():
-    """The free space is often where a blocker was just picked from, in an approach: the spot search
-    then also offers spots with less clearance, elsewhere, instead of only those on the approach."""
+def _spots_tried(problem, world, held, arm, corridors, monkeypatch):
+    """The put-down sampler's candidates, and (x, y, the nearest other object's distance) of every try."""
     import numpy as np
-    from interlayer_clutter.samplers import _table_spots
+    from interlayer_clutter import samplers
+
+    tried, motion = [], samplers.putdown_motion
+
+    def spy(geometry, world, arm, x, y, *args, **kw):
+        tried.append((x, y, min(np.hypot(x - Q[0, 3], y - Q[1, 3]) for Q in world.objects.values())))
+        return motion(geometry, world, arm, x, y, *args, **kw)
+
+    monkeypatch.setattr(samplers, "putdown_motion", spy)
+    sampler = samplers.ClutterSampler([0])
+    found = sampler.putdown_candidates(problem, held, arm, world, np.random.default_rng(3), corridors, 4)
+    return found, tried
+
+
+ROOMY = 2 * 0.04 + 0.06  # centre distance of the roomiest spots (6 cm edge to edge)
+
+
+def test_when_the_roomy_spots_lie_on_known_approaches_tighter_ones_are_tried(monkeypatch):
+    """The free space is often where a blocker was just picked from, in an approach (or deep between
+    objects, where the arm cannot lower or back out): while no roomy spot is both unobstructed and off
+    the known approaches, the search goes on with spots of less clearance."""
+    import numpy as np
+    from interlayer_clutter.samplers import ClutterSampler
 
     problem = _problem(["problem.objects=15", "planner.seed=0"])
-    geometry, world = problem.geometry, problem.geometry.initial_world()
-    obj = geometry.layout.objects[0].name
+    geometry = problem.geometry
+    held = [o.name for o in geometry.layout.objects if o.name != geometry.layout.target][0]
+    world = _holding(problem, geometry.initial_world(), ClutterSampler([0]), held, "left")
     xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
-    roomy = list(_table_spots(geometry, world, obj, np.random.default_rng(0), 20))
     everywhere = [(1.0, np.array([(x, y) for x in np.linspace(xmin, xmax, 40) for y in np.linspace(ymin, ymax, 40)]))]
-    offered = list(_table_spots(geometry, world, obj, np.random.default_rng(0), 20, corridors=everywhere))
-    assert offered[:len(roomy)] == roomy and len(offered) > len(roomy)
+    found, tried = _spots_tried(problem, world, held, "left", everywhere, monkeypatch)
+    assert found and min(d for _, _, d in tried) < ROOMY - 1e-9
+    # bounded: once something was found, 6 x the candidates wanted per clearance level (of 3)
+    assert len({(x, y) for x, y, _ in tried}) <= 3 * 6 * 4
+
+
+def test_a_roomy_spot_that_is_clear_and_off_the_approaches_ends_the_search(monkeypatch):
+    """Tighter spots are only searched while the roomy ones offer nothing good."""
+    from interlayer_clutter.samplers import ClutterSampler
+
+    problem = _problem(["problem.objects=15", "planner.seed=0"])
+    geometry = problem.geometry
+    held = [o.name for o in geometry.layout.objects if o.name != geometry.layout.target][0]
+    world = _holding(problem, geometry.initial_world(), ClutterSampler([0]), held, "left")
+    found, tried = _spots_tried(problem, world, held, "left", [], monkeypatch)
+    assert found[0][0] == (0, 0, 0) and min(d for _, _, d in tried) >= ROOMY - 1e-9
+
+
+def test_front_put_downs_are_searched_within_reach_of_the_near_side():
+    """With the base kept on the near side, spots deeper than an arm can put anything down are not
+    offered (every try there failed: IK and base sampling for nothing)."""
+    import numpy as np
+    from interlayer_clutter.samplers import _table_spots
+    from interlayer_pr2.scene import base_limits
+
+    problem = _problem(["problem.objects=40", "problem.approach=front", "planner.seed=6"])
+    geometry = problem.geometry
+    obj = geometry.layout.objects[0].name
+    spots = [p for level in _table_spots(geometry, geometry.initial_world(), obj, np.random.default_rng(0), 80)
+             for p in level]
+    reach = base_limits(geometry.layout)[0][1] + 0.8  # no put-down succeeded farther out (samplers.PUT_REACH)
+    assert spots and max(x for x, _, _ in spots) <= reach and max(x for x, _, _ in spots) > reach - 0.1
 
 
 def test_moved_names_the_objects_a_step_picked_or_put_down():

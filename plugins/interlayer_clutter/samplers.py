@@ -207,29 +207,34 @@ class ClutterSampler(EpochState):
 
         geometry = problem.geometry
         G = world.held[arm][1]
-        spots = []
         geometry.sync(world)
         target = geometry.layout.target
-        for x, y, z in _table_spots(geometry, world, obj, rng, tries, corridors=corridors):
-            spots.append((self.spot_score(geometry, world, target, x, y, corridors), x, y, z))
-        spots.sort(key=lambda s: -s[0])
         found = []
-        clear, good = [], []  # candidates with nothing on their lowering and retreat; and off known approaches
-        for rank, (_, x, y, z) in enumerate(spots):
-            blocks = in_corridors(x, y, corridors)
-            if rank >= 3 * limit and (good or (clear and rank >= 6 * limit)):
-                break  # past the best spots, search on while every spot found is certainly or likely blocked
-            for _ in range(4 if rank < 3 * limit else 8):
-                tried = putdown_motion(geometry, world, arm, x, y, lambda h, x=x, y=y, z=z: _putdown(G, x, y, z, h)[0], rng)
-                if tried is None:
-                    continue
-                base, P, T, lower, back, hit, sweep = tried
-                # a spot on a known approach blocks a later pick for sure: worse than a guessed transit hit
-                found.append(((len(hit), blocks, len(sweep)), rank, base, x, y, P, T, lower, back))
-                clear += [found[-1]] if not hit else []
-                good += [found[-1]] if not hit and not blocks else []
-                break
-            if (len(found) >= limit and good) or (len(good) >= 2 and good[-1][0] == (0, 0, 0)):
+        good = []  # candidates with nothing on their lowering and retreat, off the known approaches
+        offset = 0
+        # the roomiest spots first; tighter ones only while none found is both unobstructed and off the
+        # known approaches (on a crowded table the roomy spots are often holes left in an approach, or
+        # deep between objects, where the arm cannot lower or back out)
+        for level in _table_spots(geometry, world, obj, rng, tries):
+            spots = sorted(((self.spot_score(geometry, world, target, x, y, corridors), x, y, z) for x, y, z in level),
+                           key=lambda s: -s[0])
+            for i, (_, x, y, z) in enumerate(spots):
+                blocks = in_corridors(x, y, corridors)
+                if i >= 3 * limit and (good or (found and i >= 6 * limit)):
+                    break  # past the best spots, search on while every spot found is likely blocked; then tighter ones
+                for _ in range(4 if i < 3 * limit else 8):
+                    tried = putdown_motion(geometry, world, arm, x, y, lambda h, x=x, y=y, z=z: _putdown(G, x, y, z, h)[0], rng)
+                    if tried is None:
+                        continue
+                    base, P, T, lower, back, hit, sweep = tried
+                    # a spot on a known approach blocks a later pick for sure: worse than a guessed transit hit
+                    found.append(((len(hit), blocks, len(sweep)), offset + i, base, x, y, P, T, lower, back))
+                    good += [found[-1]] if not hit and not blocks else []
+                    break
+                if (len(found) >= limit and good) or (len(good) >= 2 and good[-1][0] == (0, 0, 0)):
+                    break
+            offset += len(spots)
+            if good:
                 break
         found.sort(key=lambda f: (f[0], f[1]))
         return found[:limit]
@@ -299,33 +304,34 @@ def _with_hover(geometry, world, arm, T, wps, rng, obj):
 CORRIDOR = 0.15  # m: put-down spots keep this far from the footprint of the target's best approaches
 
 
-def _table_spots(geometry, world, obj, rng, tries, want=12, corridors=()):
-    """Upright resting poses of obj anywhere on the table, clear of fixed obstacles and >= 6 cm
-    (edge to edge) from every other object. With 40 objects on the table such spots are rare: many
-    points are drawn at once (vectorized), and when fewer than ``want`` pass outside ``corridors``
-    (the free space is often where an object was just picked from, in an approach), the clearance
-    shrinks (4, then 2.5 cm) for the remaining ones."""
+# m: how far beyond the base's limits a put-down can be reached (lowering a side-grasped cylinder onto the
+# table; measured on the front scenes: 1 of 362 tries succeeded farther out, from base_near's 0.95 m)
+PUT_REACH = 0.8
+
+
+def _table_spots(geometry, world, obj, rng, tries):
+    """Upright resting poses of obj anywhere on the table, clear of fixed obstacles, in lists of
+    decreasing clearance from every other object (edge to edge: 6, 4, 2.5 cm). With 40 objects on the
+    table roomy spots are rare: many points are drawn at once (vectorized); the caller stops taking
+    lists once it has what it needs (the draws do not depend on how many it takes)."""
     o = geometry.specs[obj]
     xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
     m = o.size[0] + 0.02
     z = table_top(geometry.layout) + o.height / 2 + REST_GAP
     n = max(tries, 40) * 25
-    far = min(xmax - m, base_limits(geometry.layout)[0][1] + 0.95)  # beyond the arm's reach from any base pose
+    far = min(xmax - m, base_limits(geometry.layout)[0][1] + PUT_REACH)  # beyond, no base pose puts anything down
     pts = np.column_stack([rng.uniform(xmin + m, far, n), rng.uniform(ymin + m, ymax - m, n)])
     others = np.array([Q[:2, 3] for Q in world.objects.values()]).reshape(-1, 2)
     d = np.min(np.linalg.norm(pts[:, None, :] - others[None, :, :], axis=2), axis=1) if len(others) else np.full(n, 9.0)
-    out = 0
     for gap in (0.06, 0.04, 0.025):
         ok = (d >= 2 * o.size[0] + gap)
+        level = []
         for x, y in pts[ok][:tries]:
             with geometry.stats.timer("collision_checking"):
                 hits = geometry.cw.objects_overlap(obj, pose4(float(x), float(y), z, 0.0))
-            if hits & geometry.fixed:
-                continue
-            out += not in_corridors(x, y, corridors)
-            yield float(x), float(y), z
-        if out >= want:
-            return
+            if not hits & geometry.fixed:
+                level.append((float(x), float(y), z))
+        yield level
         d = np.where(ok, -1.0, d)  # already offered
 
 
