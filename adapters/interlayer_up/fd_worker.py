@@ -54,22 +54,12 @@ def _translate_in_fork(run_components, original):
         parent = os.getpid()
         pid = os.fork()
         if pid == 0:
-            code = 1  # an exception the translator does not catch: the driver reads 1 as a crash
-            try:
+            def translate_here():
                 _die_with(parent)
                 sys.argv = ["translate", *map(str, args.translate_inputs), *map(str, args.translate_options)]
                 runpy.run_module("fast_downward.translate", run_name="__main__", alter_sys=True)
-                code = 0
-            except SystemExit as stop:
-                code = stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 1)
-                if not isinstance(stop.code, (int, type(None))):
-                    print(stop.code, file=sys.stderr)
-            except BaseException:
-                traceback.print_exc()
-            finally:
-                sys.stdout.flush()
-                sys.stderr.flush()
-                os._exit(code)
+
+            _run_then_exit(translate_here, crash=1)  # the driver reads 1 as the translator's crash
         returncode = os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
         if returncode == 0:
             return (0, True)
@@ -82,34 +72,54 @@ def _translate_in_fork(run_components, original):
 
 def _child(argv, cwd, worker):
     """Run the driver on ``argv`` in this forked process; never returns."""
-    code = DRIVER_CRITICAL_ERROR
-    try:
-        _die_with(worker)
-        os.setpgid(0, 0)
-        signal.signal(signal.SIGINT, signal.SIG_DFL)
-        os.chdir(cwd)
-        for fd, name, mode in ((0, os.devnull, os.O_RDONLY), (1, "stdout.txt", os.O_WRONLY | os.O_CREAT | os.O_TRUNC),
-                               (2, "stderr.txt", os.O_WRONLY | os.O_CREAT | os.O_TRUNC)):
-            target = os.open(name, mode, 0o644)
-            os.dup2(target, fd)
-            os.close(target)
-        sys.stdin = open(0, closefd=False)
-        sys.stdout = open(1, "w", closefd=False)
-        sys.stderr = open(2, "w", closefd=False)
-        from driver import main, run_components
+    _run_then_exit(lambda: _drive(argv, cwd, worker), crash=DRIVER_CRITICAL_ERROR)
 
-        run_components.run_translate = _translate_in_fork(run_components, run_components.run_translate)
-        sys.argv = [argv[1], *argv[2:]]
-        main.main()
+
+def _drive(argv, cwd, worker):
+    """The driver's main on ``argv`` in ``cwd``, its output to stdout.txt / stderr.txt there."""
+    _die_with(worker)
+    os.setpgid(0, 0)
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    os.chdir(cwd)
+    for fd, name, mode in ((0, os.devnull, os.O_RDONLY), (1, "stdout.txt", os.O_WRONLY | os.O_CREAT | os.O_TRUNC),
+                           (2, "stderr.txt", os.O_WRONLY | os.O_CREAT | os.O_TRUNC)):
+        target = os.open(name, mode, 0o644)
+        os.dup2(target, fd)
+        os.close(target)
+    sys.stdin = open(0, closefd=False)
+    sys.stdout = open(1, "w", closefd=False)
+    sys.stderr = open(2, "w", closefd=False)
+    from driver import main, run_components
+
+    run_components.run_translate = _translate_in_fork(run_components, run_components.run_translate)
+    sys.argv = [argv[1], *argv[2:]]
+    main.main()
+
+
+def _run_then_exit(body, crash: int):
+    """Run ``body`` in a forked child and leave at once (no inherited cleanup), its output written, with
+    the exit status Python would give it; ``crash`` for an exception it does not catch."""
+    code = crash
+    try:
+        body()
         code = 0
     except SystemExit as stop:
-        code = stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 1)
+        code = _exit_code(stop)
     except BaseException:
         traceback.print_exc()
     finally:
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(code)
+
+
+def _exit_code(stop: SystemExit) -> int:
+    """The exit status Python gives a SystemExit: its number, 0 for None, else 1 with the message printed."""
+    if isinstance(stop.code, int):
+        return stop.code
+    if stop.code is not None:
+        print(stop.code, file=sys.stderr)
+    return 0 if stop.code is None else 1
 
 
 def _answer(out, **message):
