@@ -222,8 +222,6 @@ def test_moved_names_the_objects_a_step_picked_or_put_down():
     """What backjumping in TryRefine asks the PR2 geometry (refine.Refiner)."""
     from dataclasses import replace
 
-    import numpy as np
-
     problem = _problem(["problem.objects=15", "planner.seed=0"])
     world = problem.geometry.initial_world()
     a, b = list(world.objects)[:2]

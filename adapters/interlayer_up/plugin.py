@@ -17,18 +17,16 @@ ENGINES = {
 
 def _factory(name, default_params):
     def make(options):
+        from interlayer.errors import UserError
+
         from .planner import FF_SEARCHES, UPTaskPlanner
 
         opts = dict(options)
         validate = opts.pop("validate", "off")
         if validate not in ("every", "final", "off"):
-            from interlayer.errors import UserError
-
             raise UserError(f"task_planner.{name}.validate must be 'every', 'final' or 'off', got {validate!r}.")
         warm = opts.pop("warm", True)
         if not isinstance(warm, bool):
-            from interlayer.errors import UserError
-
             raise UserError(f"task_planner.{name}.warm must be true or false, got {warm!r}.")
         fallbacks = ()
         if name == "ff":
@@ -44,8 +42,6 @@ def _factory(name, default_params):
             params = {"fast_downward_alias": opts.pop("alias")}
         params.update(opts.pop("params", {}))
         if opts:
-            from interlayer.errors import UserError
-
             raise UserError(f"Unknown option(s) {sorted(opts)} for task planner '{name}'; valid: search, alias, params, validate, warm.")
         return UPTaskPlanner(name=name, engine=engine, params=params, fallbacks=fallbacks, validate=validate, warm=warm)
 

@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import atexit
 import json
+import logging
 import os
 import select
 import signal
 import subprocess
 import sys
-import logging
 import threading
 import time
 from pathlib import Path

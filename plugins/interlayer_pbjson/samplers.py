@@ -109,13 +109,16 @@ class PBSampler(ClutterSampler):
         fewest objects in the way first."""
         geometry = problem.geometry
 
+        overlap = {}  # the objects where the last pose offered stands (putdown_motion asks once per try)
+
         def clear_of_fixed(pose_at):
             def at(heading):
                 P = pose_at(heading)
                 if P is None:
                     return None
                 with geometry.stats.timer("collision_checking"):
-                    return None if geometry.cw.objects_overlap(obj, P) & geometry.fixed else P
+                    overlap["hits"] = geometry.cw.objects_overlap(obj, P)
+                return None if overlap["hits"] & geometry.fixed else P
             return at
 
         found = []
@@ -127,8 +130,7 @@ class PBSampler(ClutterSampler):
                 if tried is None:
                     continue
                 base, P, T, lower, back, hit, sweep = tried
-                with geometry.stats.timer("collision_checking"):
-                    hit |= geometry.cw.objects_overlap(obj, P)  # objects where it is put
+                hit |= overlap["hits"]  # objects where it is put
                 found.append(((len(hit), len(sweep)), rank, base, x, y, P, T, lower, back))
                 break
             if len(found) >= limit or (found and found[-1][0] == (0, 0) and len(found) >= 2):

@@ -623,7 +623,7 @@ class PR2Geometry:
         obj, arm = step.args[0], step.args[1]
         approach, lift = cand.waypoints
         pre, grasp = approach[0], approach[-1]
-        group, segs, w = f"{arm}_arm", [], world
+        segs, w = [], world
         if not self.grasps(w.with_arm(arm, grasp), arm, obj):
             # a candidate reused for another pose of the object (plan shortcutting refines a later pick
             # again with its old grasp after dropping an earlier move of that object)
