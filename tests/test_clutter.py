@@ -190,6 +190,37 @@ def test_when_the_roomy_spots_lie_on_known_approaches_tighter_ones_are_tried(mon
     assert len({(x, y) for x, y, _ in tried}) <= 3 * 6 * 4
 
 
+def test_a_spot_on_the_targets_best_approach_comes_after_spots_with_objects_in_the_way(monkeypatch):
+    """Objects in a put-down's way are learned and cleared (or another slot is taken); a spot on the
+    target's best approach blocks the pick the plan ends with for sure (Clutter-40 front seed 6: the
+    loop put a blocker back there until it reset)."""
+    import numpy as np
+    from interlayer_clutter import samplers
+
+    problem = _problem(["problem.objects=15", "planner.seed=0"])
+    geometry = problem.geometry
+    held = [o.name for o in geometry.layout.objects if o.name != geometry.layout.target][0]
+    world = _holding(problem, geometry.initial_world(), samplers.ClutterSampler([0]), held, "left")
+    xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
+    half = np.array([(x, y) for x in np.linspace(xmin, (xmin + xmax) / 2, 20) for y in np.linspace(ymin, ymax, 40)])
+    corridor = [(samplers.TARGET_CORRIDOR, half)]
+    on_approach, motion = [], samplers.putdown_motion
+
+    def motion_with_a_blocker_off_the_approach(geometry, world, arm, x, y, *args, **kw):
+        out = motion(geometry, world, arm, x, y, *args, **kw)
+        if out is None:
+            return None
+        if samplers.in_corridors(x, y, corridor):
+            on_approach.append((x, y))
+            return out
+        return (*out[:5], out[5] | {"in-the-way"}, out[6])
+
+    monkeypatch.setattr(samplers, "putdown_motion", motion_with_a_blocker_off_the_approach)
+    found = samplers.ClutterSampler([0]).putdown_candidates(problem, held, "left", world, np.random.default_rng(3),
+                                                            corridor, 4)
+    assert on_approach and found and all(f[0][:2] == (False, 1) for f in found)
+
+
 def test_a_roomy_spot_that_is_clear_and_off_the_approaches_ends_the_search(monkeypatch):
     """Tighter spots are only searched while the roomy ones offer nothing good."""
     from interlayer_clutter.samplers import ClutterSampler
@@ -199,7 +230,7 @@ def test_a_roomy_spot_that_is_clear_and_off_the_approaches_ends_the_search(monke
     held = [o.name for o in geometry.layout.objects if o.name != geometry.layout.target][0]
     world = _holding(problem, geometry.initial_world(), ClutterSampler([0]), held, "left")
     found, tried = _spots_tried(problem, world, held, "left", [], monkeypatch)
-    assert found[0][0] == (0, 0, 0) and min(d for _, _, d in tried) >= ROOMY - 1e-9
+    assert found[0][0] == (False, 0, 0, 0) and min(d for _, _, d in tried) >= ROOMY - 1e-9
 
 
 def test_front_put_downs_are_searched_within_reach_of_the_near_side():
@@ -251,6 +282,34 @@ def test_a_blocked_pick_in_the_papers_scene_fails_before_any_motion_is_planned()
     cand = next(iter(ClutterSampler([0])(problem, step, world, None)))
     out = geometry.refine_step(step, world, cand, None)
     assert not out.ok and out.failure.kind == "obstruction" and out.failure.detail.startswith("pick approach")
+
+
+@pytest.mark.skipif(not R040.is_file(), reason=f"{R040} (beside the checkout) is absent")
+def test_a_blocked_pick_learns_what_blocks_the_other_arm_too():
+    """The target of the paper's scene is blocked for both arms: the failed left pick also names the
+    right arm's blockers (its best grasp's approach, every right grasp being obstructed), and the
+    template translator turns them into Obstructs facts about the right arm's grasp reference."""
+    from interlayer.abstraction import abstract
+    from interlayer.builtin import translate_by_templates
+    from interlayer.domain import GroundStep
+    from interlayer.plugins import PluginHost
+    from interlayer_clutter.samplers import ClutterSampler
+
+    problem = api.build_problem(PluginHost(), api.resolve_config(str(R040), []))
+    geometry, world = problem.geometry, problem.geometry.initial_world()
+    t = geometry.layout.target
+    step = GroundStep("pick", (t, "left", "right", f"bpfg_{t}_left", f"gpfg_{t}_left", f"gpfg_{t}_right"))
+    sampler = ClutterSampler([0])
+    cand = next(iter(sampler(problem, step, world, None)))
+    failure = geometry.refine_step(step, world, cand, None).failure
+    assert callable(failure.also) and "also" not in failure.to_json()  # found when translated, not before
+    right = sampler.ranked_grasps(problem, world, t, "right")
+    assert right[0][0][0] > 0  # every right grasp has something on its approach
+    blockers = failure.also_objects()["?blocker2"]
+    assert blockers and set(blockers) <= {o.name for o in geometry.layout.objects} - {t}
+    facts = translate_by_templates(failure, step, abstract(problem))
+    assert facts == ({("Obstructs", b, f"gpfg_{t}_left") for b in failure.objects}
+                     | {("Obstructs", b, f"gpfg_{t}_right") for b in blockers})
 
 
 def test_equally_clear_grasps_come_nearest_to_the_robot_first():

@@ -40,3 +40,22 @@ def test_apply_effect_forall_delete_and_conditional_add():
                       " (when (Empty) (WasEmpty)))")
     out = logic.apply_effect(eff, state, {"?b": "b2"}, objects_of)
     assert out == frozenset({("Held", "b2"), ("WasEmpty",)})
+
+
+def test_a_forall_that_only_deletes_matches_the_state_as_grounding_would():
+    """Deletes under forall are matched against the state (not ground for every object): the same
+    result as grounding them, quantified variables ranging over their type only, repeated variables
+    bound once, free ones by the binding."""
+    state = frozenset({("Obstructs", "b1", "p1", "b2"), ("Obstructs", "b1", "p2", "b2"),
+                       ("Obstructs", "p1", "p1", "b2"),  # "p1" is no block: stays
+                       ("Obstructs", "b2", "p1", "b1"),  # another ?b: stays
+                       ("Same", "b1", "b1"), ("Same", "b1", "b2"), ("Empty",)})
+    eff = logic.parse("(and (forall (?o - block ?p - pose) (and (not (Obstructs ?o ?p ?b)) (not (Other ?o))))"
+                      " (forall (?o - block) (not (Same ?o ?o))))")
+    out = logic.apply_effect(eff, state, {"?b": "b2"}, objects_of)
+    assert out == frozenset({("Obstructs", "p1", "p1", "b2"), ("Obstructs", "b2", "p1", "b1"), ("Same", "b1", "b2"),
+                             ("Empty",)})
+    grounded = set()  # what grounding every binding deletes
+    for o in objects_of("block"):
+        grounded |= {("Same", o, o)} | {("Obstructs", o, p, "b2") for p in objects_of("pose")}
+    assert out == state - grounded

@@ -365,6 +365,27 @@ def test_shortcut_keeps_a_step_whose_removal_does_not_refine():
     assert short == plan and out == outcomes and not dropped
 
 
+def test_shortcut_does_not_retry_a_removal_that_leaves_a_known_obstruction_in_place():
+    """Dropping take(b) fails (b is in a's way); once take(y) is dropped, that removal is not tried
+    again: the re-refinement that failed on b is not repeated."""
+    blocked = []
+
+    def script(item, label, world, n):
+        if item == "a" and "b" not in world:
+            blocked.append(n)
+            return Failure("obstruction", ("b",))
+        return None
+
+    problem = Problem(SPEC, {i: "item" for i in "aby"}, frozenset(("Takeable", t) for t in "aby"), "(Done a)",
+                      ScriptedGeometry(script), {})
+    model = abstract(problem)
+    plan = [GroundStep("take", ("b", "gp_b")), GroundStep("take", ("y", "gp_y")), GroundStep("take", ("a", "gp_a"))]
+    outcomes = _refined(problem, model, plan)
+    short, _, dropped = _shortcut(problem, model, plan, outcomes, model.init)
+    assert short == [plan[0], plan[2]] and dropped == [[plan[1]]]
+    assert len(blocked) == 1
+
+
 def test_shortcut_is_optional(host):
     result, _ = run(lambda *a: None, host=host)
     assert result.counts["plan_length_before_shortcut"] == result.counts["plan_length"] == 1

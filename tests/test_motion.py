@@ -145,3 +145,51 @@ def test_ompl_asks_about_each_state_once_per_query(host):
     assert plan.ok and all(wall_free(p) for p in SE2.densify(plan.path))
     searched = asked[2:]  # plan() itself checks the start and the goal first
     assert len(searched) > 100 and len(set(searched)) == len(searched)
+
+
+def test_points_valid_settles_a_clear_block_by_its_middle_and_checks_the_rest_point_by_point():
+    from interlayer.motion import WAIT, points_valid
+
+    points = [np.array([x]) for x in np.linspace(0.0, 1.0, 21)]  # 0.05 apart
+    checked = []
+
+    def valid(q):
+        checked.append(float(q[0]))
+        return q[0] < 0.88
+
+    assert points_valid(points, valid, clear=lambda q: True) and not checked  # every block certified
+    assert not points_valid(points, valid) and len(checked) == 19  # no certificate: point by point to 0.9
+    checked.clear()
+    near = []  # clear only far (> 2 spacings) from the bad point at 0.9
+
+    def clear(q):
+        near.append(float(q[0]))
+        return abs(q[0] - 0.9) > 0.1 + 1e-9
+
+    assert not points_valid(points, valid, clear)
+    assert near == pytest.approx([0.1, 0.35, 0.6, 0.85])  # block middles, until one is not clear
+    assert checked == pytest.approx([0.75, 0.8, 0.85, 0.9])  # that block point by point
+    checked.clear()
+    assert points_valid(points[:18], valid, lambda q: abs(q[0] - 0.35) > 0.1 + 1e-9)  # 0.9 left out: valid
+    assert checked == pytest.approx([0.25, 0.3, 0.35, 0.4, 0.45] + [0.5, 0.55, 0.6, 0.65, 0.7] * (WAIT > 0)
+                                    + [0.75, 0.8, 0.85] * (WAIT > 1))  # the next WAIT blocks too
+
+
+def test_ompl_checks_edges_a_block_at_a_time_where_the_query_certifies_them(host):
+    """With ``clear_within`` (here: the point's distance to the wall), OMPL's edges are checked by the
+    query's block-wise segment check instead of state by state: far fewer checks, paths still valid."""
+    def gap(q):  # distance from (x, y) to the wall; the config-space distance bounds it
+        dx, dy = max(abs(q[0]) - 0.05, 0.0), max(abs(q[1]) - 0.5, 0.0)
+        return math.hypot(dx, dy)
+
+    counts = {}
+    for certified in (False, True):
+        q = wall_query(movable_wall=False)
+        wall_free, asked = q.is_valid, []
+        q.is_valid = lambda v, f=wall_free, a=asked: a.append(1) or f(v)
+        if certified:
+            q.clear_within = lambda radius, relaxed: (lambda v: gap(v) > radius)
+        plan = host["motion_planners"].get("ompl:RRTConnect").factory({"time_limit": 0.5}).plan(q, straight=False)
+        assert plan.ok and all(wall_free(p) for p in SE2.densify(plan.path))
+        counts[certified] = len(asked)
+    assert counts[True] < 0.5 * counts[False]

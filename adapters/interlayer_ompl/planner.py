@@ -1,6 +1,7 @@
 """OMPL's geometric planners behind interlayer's MotionPlanner (exact solutions only)."""
 from __future__ import annotations
 
+import functools
 import math
 import zlib
 
@@ -10,6 +11,10 @@ from interlayer.motion import MotionPlanner
 
 # Planners that keep improving until the time limit unless a cost threshold says "any path will do".
 OPTIMIZING = {"RRTstar", "PRM", "PRMstar", "BITstar", "FMT", "BFMT", "InformedRRTstar", "SORRTstar", "AORRTC"}
+# Planners (and the path simplifier) that check edges only through MotionValidator.checkMotion(s1, s2),
+# so that the query's own segment check (a block of points at a time, see MotionQuery.clear_within)
+# can replace OMPL's point-by-point one; others keep OMPL's.
+EDGE_CHECKED = {"RRTConnect", "RRT", "BiTRRT", "PRM", "PRMstar", "RRTstar"}
 
 
 def _ompl():
@@ -60,7 +65,11 @@ class OMPLPlanner(MotionPlanner):
         s.setBounds(bounds)
         return s
 
-    def _plan(self, space, start, goal, is_valid, time_limit):
+    def _solve(self, query, relaxed, time_limit):
+        segment_ok = query.segment_checker(relaxed) if query.clear_within and self.planner in EDGE_CHECKED else None
+        return self._plan(query.space, query.start, query.goal, query.check(relaxed), time_limit, segment_ok)
+
+    def _plan(self, space, start, goal, is_valid, time_limit, segment_ok=None):
         ob, og = _ompl()
         ompl_space = self._space(space)
         se2 = space.kind == "se2"
@@ -105,6 +114,9 @@ class OMPLPlanner(MotionPlanner):
         setup.setStartAndGoalStates(to_state(start), to_state(goal))
         si = setup.getSpaceInformation()
         si.setStateValidityCheckingResolution(max(1e-4, space.resolution / ompl_space.getMaximumExtent()))
+        if segment_ok is not None:
+            edges = _edge_validator()(si, values, segment_ok)  # kept alive while OMPL uses it
+            si.setMotionValidator(edges)
         planner_cls = getattr(og, self.planner)
         setup.setPlanner(planner_cls(si))
         if self.planner in OPTIMIZING:
@@ -120,3 +132,24 @@ class OMPLPlanner(MotionPlanner):
             # fifth of its collision checks (pr2_pick seeds 0-3)
             setup.getPathSimplifier().ropeShortcutPath(path)
         return [to_vec(path.getState(i)) for i in range(path.getStateCount())]
+
+
+@functools.cache
+def _edge_validator():
+    from ompl import base as ob
+
+    class EdgeValidator(ob.MotionValidator):
+        """checkMotion(s1, s2) by the query's segment check, each edge once (rope shortcutting asks again)."""
+
+        def __init__(self, si, values, segment_ok):
+            super().__init__(si)
+            self._values, self._ok, self._known = values, segment_ok, {}
+
+        def checkMotion(self, s1, s2):
+            a, b = self._values(s1), self._values(s2)
+            ok = self._known.get((a, b))
+            if ok is None:
+                ok = self._known[(a, b)] = bool(self._ok(np.array(a), np.array(b)))
+            return ok
+
+    return EdgeValidator

@@ -158,7 +158,9 @@ def abstract(problem: Problem) -> TaskModel:
         _check_formula(spec, eff, f"the effect of {where}", params)
         for kind, templates in act.learn.items():
             for tpl in templates:
-                _check_formula(spec, logic.parse(tpl), f"{where}, learn[{kind!r}]", [*params, "?blocker"])
+                f = logic.parse(tpl)  # a failure binds the ?blocker... variables (Failure.objects, .also)
+                _check_formula(spec, f, f"{where}, learn[{kind!r}]",
+                               [*params, *(v for v in logic.free_variables(f) if v.startswith("?blocker"))])
         full_actions[act.name] = (act.parameters, pre, eff)
         for p, pol in logic.atoms_with_polarity(pre):
             occurrences.setdefault(p.name, set()).add(pol)

@@ -13,17 +13,22 @@ def interlayer_register_motion_planners(registry):
 
 
 def translate_by_templates(failure, step, model):
-    """Turn a failure into the facts its action declares in ``learn[kind]`` (e.g. Obstructs)."""
+    """Turn a failure into the facts its action declares in ``learn[kind]`` (e.g. Obstructs): one per
+    object bound to the template's ``?blocker...`` variable (``?blocker``: the failure's objects; others:
+    ``failure.also``), or one fact for a template without such a variable."""
     spec = model.problem.domain.action(step.action)
     templates = spec.learn.get(failure.kind, ())
     binding = model.binding(step)
+    also = failure.also_objects() if templates else {}
     facts = set()
     for tpl in templates:
         pred = logic.parse(tpl)
-        blockers = failure.objects if "?blocker" in pred.args else (None,)
-        for blocker in blockers:
-            b = dict(binding, **({"?blocker": blocker} if blocker else {}))
-            facts.add(logic.ground_atom(pred, b))
+        var = next((a for a in pred.args if a.startswith("?blocker")), None)
+        if var is None:
+            facts.add(logic.ground_atom(pred, binding))
+            continue
+        for blocker in failure.objects if var == "?blocker" else also.get(var, ()):
+            facts.add(logic.ground_atom(pred, dict(binding, **{var: blocker})))
     return facts
 
 

@@ -32,7 +32,8 @@ class ActionSpec:
 
     ``learn`` maps a motion-failure kind (``"obstruction"``, ``"ik"``, ...) to fact templates over
     the action's parameters plus the failure's own variables (``?blocker`` for each obstructing
-    object), e.g. ``{"obstruction": "(Obstructs ?blocker ?gp ?b)"}``.
+    object; ``?blocker2`` etc. for each object of ``Failure.also`` under that name), e.g.
+    ``{"obstruction": "(Obstructs ?blocker ?gp ?b)"}``.
     ``pose_generator`` names the registered generator that instantiates the action's references.
     """
 

@@ -211,6 +211,7 @@ def _bindings(variables, binding, objects_of):
 def apply_effect(f: Formula, state: frozenset, binding, objects_of) -> frozenset:
     """Progress a state through an effect: deletes first, then adds (PDDL semantics)."""
     adds, dels = set(), set()
+    by_name: dict = {}  # the state's atoms per predicate, built on first use
 
     def collect(e, b, positive=True):
         if isinstance(e, Pred):
@@ -221,6 +222,14 @@ def apply_effect(f: Formula, state: frozenset, binding, objects_of) -> frozenset
             for a in e.args:
                 collect(a, b, positive)
         elif isinstance(e, Quant):
+            deleted = _deleted_literals(e.body, positive)
+            if deleted is not None:
+                # only deletes: match them against the state rather than ground them for every object
+                if not by_name:
+                    for atom in state:
+                        by_name.setdefault(atom[0], []).append(atom)
+                dels.update(_matching(deleted, dict(e.variables), b, by_name, objects_of))
+                return
             for bb in _bindings(e.variables, b, objects_of):
                 collect(e.body, bb, positive)
         elif isinstance(e, When):
@@ -231,6 +240,47 @@ def apply_effect(f: Formula, state: frozenset, binding, objects_of) -> frozenset
 
     collect(f, binding)
     return frozenset((state - dels) | adds)
+
+
+def _deleted_literals(e, positive):
+    """The predicates an effect deletes if it only deletes (literals under ``and``), else None."""
+    if isinstance(e, Pred):
+        return None if positive else [e]
+    if isinstance(e, Not):
+        return _deleted_literals(e.arg, not positive)
+    if isinstance(e, And):
+        out = []
+        for a in e.args:
+            found = _deleted_literals(a, positive)
+            if found is None:
+                return None
+            out += found
+        return out
+    return None
+
+
+def _matching(preds, variables, binding, by_name, objects_of):
+    """The atoms of the state (``by_name``) that ``preds`` ground to, the quantified ``variables``
+    ranging over the objects of their types."""
+    typed = {}
+    for p in preds:
+        for atom in by_name.get(p.name, ()):
+            if len(atom) != len(p.args) + 1:
+                continue
+            bound = {}
+            for arg, value in zip(p.args, atom[1:]):
+                if arg in variables:
+                    if bound.setdefault(arg, value) != value:
+                        break
+                    kind = variables[arg]
+                    if kind not in typed:
+                        typed[kind] = set(objects_of(kind))
+                    if value not in typed[kind]:
+                        break
+                elif binding.get(arg, arg) != value:
+                    break
+            else:
+                yield atom
 
 
 def ground_atom(p: Pred, binding: Mapping[str, str]) -> Atom:

@@ -88,7 +88,11 @@ class MotionQuery:
       obstacle) pair closer than ``margin`` at ``q`` (movable obstacles only if ``movables``), used by
       optimising planners (``trajopt``);
     * ``tool(q)``: ``(pose, jacobian)`` of the end effector: its 4x4 world pose and the 6 x dim
-      Jacobian of its (linear, angular) velocity in world axes, used by Cartesian planners.
+      Jacobian of its (linear, angular) velocity in world axes, used by Cartesian planners;
+    * ``clear_within(radius, relaxed)``: a check ``clear(q)`` that is true only if every configuration
+      within ``radius`` (configuration-space distance) of ``q`` is valid (``is_valid_static`` if
+      ``relaxed``), e.g. the bodies clear of each other by a margin that bounds how far they move; a
+      path is then checked a block of points at a time (see ``points_valid``).
     """
 
     space: ConfigSpace
@@ -100,9 +104,22 @@ class MotionQuery:
     label: str = ""
     clearances: Callable[[np.ndarray, bool, float], dict] | None = None
     tool: Callable[[np.ndarray], tuple] | None = None
+    clear_within: Callable[[float, bool], Callable[[np.ndarray], bool] | None] | None = None
 
     def check(self, relaxed: bool) -> Callable[[np.ndarray], bool]:
         return self.is_valid_static if relaxed else self.is_valid
+
+    def certificate(self, relaxed: bool) -> Callable[[np.ndarray], bool] | None:
+        """``clear_within`` for a block of BLOCK points at the space's resolution (None if not given)."""
+        if self.clear_within is None:
+            return None
+        return self.clear_within(self.space.resolution * (BLOCK // 2), relaxed)
+
+    def segment_checker(self, relaxed: bool) -> Callable[[np.ndarray, np.ndarray], bool]:
+        """``ok(a, b)``: the straight segment a-b is valid at the space's resolution (``a`` itself
+        is not checked), a block of points at a time where the certificate allows."""
+        check, clear, space = self.check(relaxed), self.certificate(relaxed), self.space
+        return lambda a, b: points_valid(space.densify([a, b])[1:], check, clear)
 
 
 @dataclass(frozen=True)
@@ -141,7 +158,7 @@ class MotionPlanner:
         start_ok, goal_ok = query.is_valid(start), query.is_valid(goal)
         path = None
         if start_ok and goal_ok and space.within_bounds(goal):
-            if self.searches and straight and segment_valid(space, start, goal, query.is_valid):
+            if self.searches and straight and query.segment_checker(False)(start, goal):
                 path = [start, goal]  # no planner needed (a sampling planner takes long to find it)
             else:
                 path = self._solve(query, False, limit)
@@ -151,7 +168,7 @@ class MotionPlanner:
         if not (query.is_valid_static(start) and query.is_valid_static(goal)):
             return MotionPlan(False, reason="start or goal collides with fixed obstacles", time=time.perf_counter() - t0)
         relaxed = None
-        if self.searches and segment_valid(space, start, goal, query.is_valid_static):
+        if self.searches and query.segment_checker(True)(start, goal):
             relaxed = [start, goal]
         elif self.searches and not goal_ok and space.within_bounds(goal):
             # Decided early: every path ends in the goal, so what collides with it obstructs; a relaxed
@@ -191,6 +208,32 @@ class MotionPlanner:
 def segment_valid(space: ConfigSpace, a, b, is_valid) -> bool:
     """Whether the straight segment a-b is valid at the space's resolution."""
     return all(is_valid(q) for q in space.densify([a, b]))
+
+
+BLOCK, WAIT = 5, 2  # see points_valid
+
+
+def points_valid(points, is_valid, clear=None, block: int = BLOCK, wait: int = WAIT) -> bool:
+    """Whether every configuration of ``points`` (consecutive points of a path, evenly spaced) is valid.
+
+    With ``clear``, a check certifying every configuration within ``block // 2`` spacings of its
+    argument, the points are taken ``block`` at a time and a block whose middle point is clear needs no
+    other check; next to an obstacle (the middle point not clear) the block's points are checked one
+    by one, and so are those of the next ``wait`` blocks (they are probably near it too)."""
+    if clear is None:
+        return all(map(is_valid, points))
+    waiting = 0
+    for k in range(0, len(points), block):
+        part = points[k:k + block]
+        if not waiting:
+            if clear(part[len(part) // 2]):
+                continue
+            waiting = wait
+        else:
+            waiting -= 1
+        if not all(map(is_valid, part)):
+            return False
+    return True
 
 
 class InterpolatingPlanner(MotionPlanner):

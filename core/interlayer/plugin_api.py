@@ -35,7 +35,7 @@ from .builtin import translate_by_templates
 from .domain import ActionSpec, DomainSpec, GroundStep, Problem, Skolem
 from .errors import UserError
 from .faults import PluginFault
-from .motion import ConfigSpace, InterpolatingPlanner, MotionPlan, MotionPlanner, MotionQuery, segment_valid
+from .motion import ConfigSpace, InterpolatingPlanner, MotionPlan, MotionPlanner, MotionQuery, points_valid, segment_valid
 from .planning import TaskPlanner, TaskPlanResult
 from .plugins import Registry
 from .refine import Candidate, EpochState, Failure, Geometry, Infeasible, StepOutcome
@@ -59,6 +59,6 @@ __all__ = [
     "hookimpl", "Registry", "UserError", "PluginFault",
     "DomainSpec", "ActionSpec", "Skolem", "Problem", "GroundStep", "TaskModel",
     "Geometry", "Candidate", "StepOutcome", "Failure", "Infeasible", "EpochState", "Drawing",
-    "ConfigSpace", "MotionQuery", "MotionPlan", "MotionPlanner", "InterpolatingPlanner", "segment_valid",
+    "ConfigSpace", "MotionQuery", "MotionPlan", "MotionPlanner", "InterpolatingPlanner", "segment_valid", "points_valid",
     "TaskPlanner", "TaskPlanResult", "translate_by_templates",
 ]

@@ -30,14 +30,24 @@ class Failure:
     """Why an action could not be refined (the failed geometric preconditions)."""
 
     kind: str  # a key of the action's learn templates ("obstruction"), or another kind ("ik", "unreachable")
-    objects: tuple = ()  # the obstructing objects, for "obstruction"
+    objects: tuple = ()  # the obstructing objects, for "obstruction" (the templates' ``?blocker``)
     detail: str = ""
     # True when no other instantiation of the earlier steps can change the verdict (a dedicated module's,
     # e.g. stackability from diameters): TryRefine then stops instead of backtracking over them
     static: bool = False
+    # objects for the templates' other ``?blocker...`` variables, e.g. {"?blocker2": ("o5",)} (what blocks
+    # the other arm's best grasp of the object a pick failed on), or a function giving them: called only
+    # when the failure is translated (the partial pass), not for every failed attempt
+    also: Mapping[str, tuple] | Callable[[], Mapping[str, tuple]] = field(default_factory=dict)
+
+    def also_objects(self) -> Mapping[str, tuple]:
+        return self.also() if callable(self.also) else self.also
 
     def to_json(self) -> dict:
-        return {"kind": self.kind, "objects": list(self.objects), "detail": self.detail}
+        out = {"kind": self.kind, "objects": list(self.objects), "detail": self.detail}
+        if self.also and not callable(self.also):
+            out["also"] = {k: list(v) for k, v in self.also.items()}
+        return out
 
 
 @dataclass

@@ -68,12 +68,15 @@ def shortcut(plan, outcomes, model, state, geometry, motion, world0, out_of_time
     """Greedily drop removable steps; returns (plan, outcomes), refined and valid."""
     plan, outcomes = list(plan), list(outcomes)
     tries = 0
+    in_the_way: set = set()  # objects a failed re-refinement ran into: removals of steps moving them fail too
     changed = True
     while changed and tries < MAX_TRIES and not out_of_time():
         changed = False
         for drop in removals(plan, model, state):
             if out_of_time() or tries >= MAX_TRIES:
                 break
+            if any(in_the_way.intersection(plan[k].args) for k in drop):
+                continue
             keep = [k for k in range(len(plan)) if k not in drop]
             shorter = [plan[k] for k in keep]
             if check_plan(model, state, shorter):
@@ -82,7 +85,9 @@ def shortcut(plan, outcomes, model, state, geometry, motion, world0, out_of_time
             first = min(drop)
             world = outcomes[first - 1].world if first else world0
             redone = _refine_again(geometry, motion, [(plan[k], outcomes[k]) for k in keep[first:]], world, stats)
-            if redone is None:
+            if not isinstance(redone, list):
+                if redone is not None and redone.kind == "obstruction":
+                    in_the_way.update(redone.objects)
                 continue
             on_accept([plan[k] for k in drop], shorter)
             plan, outcomes = shorter, outcomes[:first] + redone
@@ -93,14 +98,14 @@ def shortcut(plan, outcomes, model, state, geometry, motion, world0, out_of_time
 
 def _refine_again(geometry, motion, steps, world, stats):
     """Each (step, original outcome) refined again from ``world`` with its candidate, until the world
-    is what it was originally; None at the first failure."""
+    is what it was originally: the new outcomes, or the first failure (a ``Failure`` or None)."""
     out = []
     for k, (step, original) in enumerate(steps):
         stats.count("shortcut_attempts")
         with stats.timer("motion_planning"):
             outcome = geometry.refine_step(step, world, original.candidate, motion)
         if not outcome.ok:
-            return None
+            return outcome.failure
         out.append(replace(outcome, candidate=original.candidate))
         world = outcome.world
         if same(world, original.world):

@@ -10,7 +10,8 @@ chosen for Fast Downward's speed with 40 objects (see docs/benchmarks.md):
 * ``Obstructs(?blocker ?gp)`` / ``PDObstructs(?blocker ?pd)``: two arguments, the reference names
   the object and arm (and slot) it is for.
 * pick deletes the obstructions the picked object causes and those learned about its own grasps
-  (both arms): they described where it stood.
+  (both arms): they described where it stood. A pick whose approach is blocked learns the other arm's
+  blockers too (``?blocker2``) when its generator found every grasp of that arm obstructed.
 * put-down references are per object and slot (``gpfpd_<o>_<arm>_<slot>``, ``slot`` = s1..sK): the
   slot only gives the task planner K alternatives once a put-down is found obstructed; the concrete
   spot anywhere on the table is sampled by the pose generator.
@@ -49,8 +50,8 @@ CLUTTER_DOMAIN = DomainSpec(
     actions=(
         ActionSpec(
             name="pick",
-            # ?gp2: the other arm's grasp reference of ?o, only so that the effect forgets what was
-            # learned about grasping ?o where it stood.
+            # ?gp2: the other arm's grasp reference of ?o, so that the effect forgets what was learned
+            # about grasping ?o where it stood, and a failed pick learns what blocks the other arm too.
             parameters=(("?o", "obj"), ("?arm", "arm"), ("?arm2", "arm"), ("?bp", "bpose"), ("?gp", "gpose"),
                         ("?gp2", "gpose")),
             precondition="""(and (HandEmpty ?arm) (OnTable ?o) (IsBPFG ?bp ?o ?arm) (IsGPFG ?gp ?o ?arm)
@@ -60,7 +61,7 @@ CLUTTER_DOMAIN = DomainSpec(
                            (forall (?p - gpose) (not (Obstructs ?o ?p)))
                            (forall (?p - pdpose) (not (PDObstructs ?o ?p)))
                            (forall (?b - obj) (and (not (Obstructs ?b ?gp)) (not (Obstructs ?b ?gp2)))))""",
-            learn={"obstruction": ("(Obstructs ?blocker ?gp)",)},
+            learn={"obstruction": ("(Obstructs ?blocker ?gp)", "(Obstructs ?blocker2 ?gp2)")},
             pose_generator="clutter:pick",
         ),
         ActionSpec(

@@ -1,6 +1,7 @@
 """Clutter's pose generators: pick and place with move_base folded in (see domain.py)."""
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import replace
 
@@ -59,6 +60,7 @@ class ClutterSampler(EpochState):
         # answers already given (the partial pass repeats the error-free pass's questions), keyed by the
         # world's id and holding the world itself (so that the id is not reused while the entry lives)
         self.rankings: dict = {}  # (obj, arm, id(world)) -> (world, ranked grasps)
+        self.lookaheads: dict = {}  # (obj, arm, id(world)) -> (world, the other arm's question, see _other_arm)
         self.putdowns: dict = {}  # (obj, arm, id(world), random state, corridors) -> (world, put-down candidates)
 
     def __call__(self, problem, step, world, rng):
@@ -79,9 +81,33 @@ class ClutterSampler(EpochState):
         ranked = self.ranked_grasps(problem, world, obj, arm)
         # put-downs keep clear of these approaches: an object put down there would block this pick again
         self.corridors[(obj, arm)] = (_pose_key(world.objects[obj]), [c[6] for c in ranked[:3]])
+        other = self._other_arm(problem, world, obj, arm) if ranked and ranked[0][0][0] else None
         for nhit, _, base, kind, T, wps, _ in ranked[:limit]:
-            yield Candidate((base, *wps), {bp_ref: list(base), gp_ref: T.tolist()},
+            values = {bp_ref: list(base), gp_ref: T.tolist(), **({"other_arm": other} if other else {})}
+            yield Candidate((base, *wps), values,
                             f"{kind} grasp from base {fmt(base)} ({nhit[0]} objects on the approach, {nhit[1]} on the way)")
+
+    def _other_arm(self, problem, world, obj, arm):
+        """``other_arm_blocked`` for this question, to call later (when a failure is translated); the
+        same function for the same question, so that the candidates carrying it compare equal (the
+        refinement cache keys on them)."""
+        key = (obj, arm, id(world))
+        if self.lookaheads.get(key, (None,))[0] is not world:
+            self.lookaheads[key] = (world, functools.partial(self.other_arm_blocked, problem, world, obj, arm))
+        return self.lookaheads[key][1]
+
+    def other_arm_blocked(self, problem, world, obj, arm):
+        """(arm, base, approach, world to check it in or None) of the other arm's best grasp of obj when
+        every one of its grasps has objects in the way; else None. The refinement learns that grasp's
+        blockers with this arm's (see PR2Geometry.approach_blocked). An other arm that holds an object
+        is asked as it will be once it has put that down: out of the way, the arm tucked."""
+        other = next(a for a in ARMS if a != arm)
+        free = _hand_emptied(world, other) if world.held.get(other) else world
+        ranked = self.ranked_grasps(problem, free, obj, other)
+        if not ranked or not ranked[0][0][0]:
+            return None
+        _, _, base, _, _, wps, _ = ranked[0]
+        return other, base, wps[0], None if free is world else free
 
     def grasp_candidates(self, problem, world, obj, arm, tries: int = 40):
         """(base, kind, T, waypoints, tool xy path) candidates for picking obj with arm where it stands;
@@ -177,7 +203,7 @@ class ClutterSampler(EpochState):
             if obj == placing or P is None or _pose_key(P) != pose:
                 continue
             for rank, xy in enumerate(footprints):
-                weight = 0.5 if rank else (2.0 if obj == target else 1.5)
+                weight = 0.5 if rank else (TARGET_CORRIDOR if obj == target else 1.5)
                 out.append((weight, np.asarray(xy, float)))
         return out
 
@@ -194,7 +220,7 @@ class ClutterSampler(EpochState):
         key = (obj, arm, id(world), repr(rng.bit_generator.state), tuple((w, xy.tobytes()) for w, xy in corridors))
         if self.putdowns.get(key, (None,))[0] is not world:
             self.putdowns[key] = (world, self.putdown_candidates(problem, obj, arm, world, rng, corridors, limit))
-        for (hits, blocks, sweep), _, base, x, y, P, T, lower, back in self.putdowns[key][1]:
+        for (_, hits, blocks, sweep), _, base, x, y, P, T, lower, back in self.putdowns[key][1]:
             on = ", on a known approach" if blocks else ""
             yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])),
                             {bp_ref: list(base), pd_ref: T.tolist(), "tloc": (obj, P), "object_pose": P.tolist()},
@@ -227,11 +253,13 @@ class ClutterSampler(EpochState):
                     if tried is None:
                         continue
                     base, P, T, lower, back, hit, sweep = tried
-                    # a spot on a known approach blocks a later pick for sure: worse than a guessed transit hit
-                    found.append(((len(hit), blocks, len(sweep)), offset + i, base, x, y, P, T, lower, back))
+                    # a spot on a known approach blocks a later pick for sure: worse than a guessed transit hit;
+                    # on the target's best one (the pick the plan ends with) worse than objects in the way too
+                    found.append(((blocks >= TARGET_CORRIDOR, len(hit), blocks, len(sweep)), offset + i, base, x, y,
+                                  P, T, lower, back))
                     good += [found[-1]] if not hit and not blocks else []
                     break
-                if (len(found) >= limit and good) or (len(good) >= 2 and good[-1][0] == (0, 0, 0)):
+                if (len(found) >= limit and good) or (len(good) >= 2 and good[-1][0] == (False, 0, 0, 0)):
                     break
             offset += len(spots)
             if good:
@@ -302,6 +330,7 @@ def _with_hover(geometry, world, arm, T, wps, rng, obj):
 
 
 CORRIDOR = 0.15  # m: put-down spots keep this far from the footprint of the target's best approaches
+TARGET_CORRIDOR = 2.0  # the penalty of a spot on the target's best approach (see ClutterSampler.corridors_for)
 
 
 # m: how far beyond the base's limits a put-down can be reached (lowering a side-grasped cylinder onto the
@@ -338,6 +367,17 @@ def _table_spots(geometry, world, obj, rng, tries):
 def in_corridors(x, y, corridors) -> float:
     """The summed penalties of the corridors (see ClutterSampler.corridors_for) that (x, y) lies in."""
     return sum(weight for weight, xy in corridors if np.min(np.hypot(xy[:, 0] - x, xy[:, 1] - y)) < CORRIDOR)
+
+
+def _hand_emptied(world, arm):
+    """``world`` with ``arm``'s object put down where nothing is (far below the floor: where it will go is
+    not known yet) and the arm tucked."""
+    from interlayer_pinocchio import TUCKED_ARMS
+
+    obj = world.held[arm][0]
+    return replace(world, held={a: h for a, h in world.held.items() if a != arm},
+                   objects={**world.objects, obj: pose4(0.0, 0.0, -10.0, 0.0)},
+                   arms={**world.arms, arm: tuple(TUCKED_ARMS[arm])}, grippers={**world.grippers, arm: "closed"})
 
 
 def _pose_key(P):

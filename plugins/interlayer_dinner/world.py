@@ -178,7 +178,7 @@ class DinnerGeometry(PR2Geometry):
 
         return replace(query, is_valid=self._timed(self._carry_checker(world, True), acc),
                        is_valid_static=self._timed(self._carry_checker(world, False), acc),
-                       movables_at=self._timed(movables_at, acc), clearances=None)
+                       movables_at=self._timed(movables_at, acc), clearances=None, clear_within=None)
 
     def fine_ok(self, world, group, path, acc=None) -> bool:
         if group != "base" or not getattr(world, "carrying", None):

@@ -76,12 +76,12 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
     actions = [
         ActionSpec(
             name="pick",
-            # ?gp2: the other arm's grasp reference of ?o, only so that the effect forgets what was
-            # learned about grasping ?o where it stood (as in Clutter's pick)
+            # ?gp2: the other arm's grasp reference of ?o (as in Clutter's pick: forgotten by the effect,
+            # learned by a failure)
             parameters=(("?o", "obj"), ("?arm", "arm"), ("?arm2", "arm"), ("?bp", "bpose"), ("?gp", "gpose"),
                         ("?gp2", "gpose")),
             precondition=f"(and {' '.join(pick_pre)})", effect=f"(and {' '.join(pick_eff)})",
-            learn={"obstruction": ("(Obstructs ?blocker ?gp)",)}, pose_generator="pbjson:pick"),
+            learn={"obstruction": ("(Obstructs ?blocker ?gp)", "(Obstructs ?blocker2 ?gp2)")}, pose_generator="pbjson:pick"),
         ActionSpec(
             name="place",
             parameters=(("?o", "obj"), ("?arm", "arm"), ("?s", "surf"), ("?sl", "slot"), ("?bp", "bpose"), ("?pd", "pdpose")),
