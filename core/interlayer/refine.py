@@ -38,7 +38,7 @@ class Failure:
     # objects for the templates' other ``?blocker...`` variables, e.g. {"?blocker2": ("o5",)} (what blocks
     # the other arm's best grasp of the object a pick failed on), or a function giving them: called only
     # when the failure is translated (the partial pass), not for every failed attempt
-    also: Mapping[str, tuple] | Callable[[], Mapping[str, tuple]] = field(default_factory=dict)
+    also: Mapping[str, tuple] | Callable[[], Mapping[str, tuple]] = field(default_factory=dict, compare=False)
 
     def also_objects(self) -> Mapping[str, tuple]:
         return self.also() if callable(self.also) else self.also
