@@ -48,13 +48,14 @@ def chromium_path() -> str | None:
     return None
 
 
-def screenshot(html_path, png_path, size=(800, 600), budget_ms: int = 3000, *, timeout: float = 240.0,
+def screenshot(html_path, png_path, size=(800, 600), budget_ms: int = 3000, *, timeout: float = 120.0,
                net_log=None, extra_args=()) -> Path:
     """Render ``html_path`` (a local file, or an http(s) URL) with headless Chromium into
     ``png_path``. ``budget_ms`` is Chromium's virtual-time budget (animations
     and timers advance that far). ``net_log`` optionally records Chromium's
     network log (JSON) to that path. Raises ``RuntimeError`` when Chromium is
-    missing, fails or produces no PNG."""
+    missing, fails or produces no PNG. A Chromium that hangs (it did, once in
+    many runs, for the whole timeout) is started once more."""
     exe = chromium_path()
     if exe is None:
         raise RuntimeError(CHROMIUM_MISSING)
@@ -70,25 +71,23 @@ def screenshot(html_path, png_path, size=(800, 600), budget_ms: int = 3000, *, t
         if net_log is not None:
             cmd += [f"--log-net-log={Path(net_log).resolve()}", "--net-log-capture-mode=Everything"]
         cmd += [*extra_args, url]
-        try:
-            proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=timeout,
-                                  env={**os.environ, "HOME": profile})
-        except subprocess.TimeoutExpired as exc:
-            raise RuntimeError(f"chromium timed out after {timeout}s") from exc
+        proc = _run(cmd, timeout, env={**os.environ, "HOME": profile})
     if not png_path.exists() or png_path.stat().st_size == 0:
         tail = proc.stderr.decode("utf-8", "replace")[-2000:]
         raise RuntimeError(f"chromium produced no screenshot (rc={proc.returncode}):\n{tail}")
     return png_path
 
 
-def _run(exe_args, timeout):
-    try:
-        return subprocess.run(exe_args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=timeout)
-    except subprocess.TimeoutExpired as exc:
-        raise RuntimeError(f"chromium timed out after {timeout}s") from exc
+def _run(exe_args, timeout, env=None, attempts: int = 2):
+    for attempt in range(attempts):
+        try:
+            return subprocess.run(exe_args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=timeout, env=env)
+        except subprocess.TimeoutExpired as exc:
+            if attempt + 1 == attempts:
+                raise RuntimeError(f"chromium timed out after {timeout}s, {attempts} times") from exc
 
 
-def dump_dom(html_path, budget_ms: int = 2000, *, size=(800, 600), timeout: float = 240.0) -> str:
+def dump_dom(html_path, budget_ms: int = 2000, *, size=(800, 600), timeout: float = 120.0) -> str:
     """The page's serialized DOM after ``budget_ms`` of virtual time."""
     exe = chromium_path()
     if exe is None:
