@@ -7,14 +7,14 @@ import zlib
 
 import numpy as np
 
-from interlayer.motion import MotionPlanner
+from interlayer.motion import MotionPlanner, points_valid
 
 # Planners that keep improving until the time limit unless a cost threshold says "any path will do".
 OPTIMIZING = {"RRTstar", "PRM", "PRMstar", "BITstar", "FMT", "BFMT", "InformedRRTstar", "SORRTstar", "AORRTC"}
 # Planners (and the path simplifier) that check edges only through MotionValidator.checkMotion(s1, s2),
 # so that the query's own segment check (a block of points at a time, see MotionQuery.clear_within)
 # can replace OMPL's point-by-point one; others keep OMPL's.
-EDGE_CHECKED = {"RRTConnect", "RRT", "BiTRRT", "PRM", "PRMstar", "RRTstar"}
+EDGE_CHECKED = {"RRTConnect", "RRT", "PRM", "PRMstar", "RRTstar"}
 
 
 def _ompl():
@@ -66,10 +66,12 @@ class OMPLPlanner(MotionPlanner):
         return s
 
     def _solve(self, query, relaxed, time_limit):
-        segment_ok = query.segment_checker(relaxed) if query.clear_within and self.planner in EDGE_CHECKED else None
-        return self._plan(query.space, query.start, query.goal, query.check(relaxed), time_limit, segment_ok)
+        clear = query.certificate(relaxed) if self.planner in EDGE_CHECKED else None
+        return self._plan(query.space, query.start, query.goal, query.check(relaxed), time_limit, clear)
 
-    def _plan(self, space, start, goal, is_valid, time_limit, segment_ok=None):
+    def _plan(self, space, start, goal, is_valid, time_limit, clear=None):
+        """``clear``: the query's certificate (MotionQuery.certificate); with it, edges are checked a
+        block of points at a time (``points_valid``) instead of by OMPL, state by state."""
         ob, og = _ompl()
         ompl_space = self._space(space)
         se2 = space.kind == "se2"
@@ -101,12 +103,14 @@ class OMPLPlanner(MotionPlanner):
         # shortcutting retries the same segments: a third of its checks on the PR2): ask each state once.
         known = {}
 
-        def valid(s):
-            key = values(s)
+        def valid_at(key):
             ok = known.get(key)
             if ok is None:
                 ok = known[key] = bool(is_valid(np.array(key)))  # must be a Python bool
             return ok
+
+        def valid(s):
+            return valid_at(values(s))
 
         self._seed_rng()
         setup = og.SimpleSetup(ompl_space)
@@ -114,8 +118,11 @@ class OMPLPlanner(MotionPlanner):
         setup.setStartAndGoalStates(to_state(start), to_state(goal))
         si = setup.getSpaceInformation()
         si.setStateValidityCheckingResolution(max(1e-4, space.resolution / ompl_space.getMaximumExtent()))
-        if segment_ok is not None:
-            edges = _edge_validator()(si, values, segment_ok)  # kept alive while OMPL uses it
+        if clear is not None:
+            def edge_ok(a, b):  # the states on a-b, a excluded, through the same memo
+                return points_valid(space.densify([a, b])[1:], lambda p: valid_at(tuple(p.tolist())), clear)
+
+            edges = _edge_validator()(si, values, edge_ok)  # kept alive while OMPL uses it
             si.setMotionValidator(edges)
         planner_cls = getattr(og, self.planner)
         setup.setPlanner(planner_cls(si))
@@ -139,11 +146,11 @@ def _edge_validator():
     from ompl import base as ob
 
     class EdgeValidator(ob.MotionValidator):
-        """checkMotion(s1, s2) by the query's segment check, each edge once (rope shortcutting asks again)."""
+        """checkMotion(s1, s2) by ``edge_ok(a, b)``, each edge once (rope shortcutting asks again)."""
 
-        def __init__(self, si, values, segment_ok):
+        def __init__(self, si, values, edge_ok):
             super().__init__(si)
-            self._values, self._ok, self._known = values, segment_ok, {}
+            self._values, self._ok, self._known = values, edge_ok, {}
 
         def checkMotion(self, s1, s2):
             a, b = self._values(s1), self._values(s2)

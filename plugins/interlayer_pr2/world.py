@@ -310,17 +310,21 @@ class PR2Geometry:
                            clear_within=self._clear_within(q, "base", acc))
 
     def _clear_within(self, q, group_name, acc):
-        """MotionQuery.clear_within: the group's bodies clear of everything by the distance they can move
-        within ``radius`` (``CollisionWorld.motion_bound``). Given for the base only: its drives mostly
-        run in the open (r040: a fifth of the checks, half the time), while an arm among clutter is rarely
-        clear by the 7 cm a block needs, and a check with a margin costs about three plain ones."""
+        """MotionQuery.clear_within (``_certificate``). Given for the base only: its drives mostly run in
+        the open (r040: a fifth of the checks, half the time), while an arm among clutter is rarely clear
+        by the 7 cm a block needs, and a check with a margin costs about three plain ones."""
         def clear_within(radius, relaxed):
-            margin = self.cw.motion_bound(group_name) * radius + MARGIN_SLACK
-            if not math.isfinite(margin):
-                return None
-            return self._timed(self.cw.checker_for(group_name, q, movables=not relaxed, margin=margin), acc)
+            clear = self._certificate(q, group_name, radius, movables=not relaxed)
+            return clear and self._timed(clear, acc)
 
         return clear_within
+
+    def _certificate(self, q, group_name, radius, movables=True):
+        """A check that the group's bodies are clear of everything by the distance they can move within
+        ``radius`` of its argument (``CollisionWorld.motion_bound``): then all of that is collision-free.
+        None for a group without a bound."""
+        margin = self.cw.motion_bound(group_name) * radius + MARGIN_SLACK
+        return self.cw.checker_for(group_name, q, movables=movables, margin=margin) if math.isfinite(margin) else None
 
     def _clearances(self, q, group_name, acc):
         """Signed distances with analytic gradients (Coal + Pinocchio Jacobians) for trajopt."""
@@ -568,9 +572,7 @@ class PR2Geometry:
         space = self.base_space if group == "base" else self.arm_space[group.split("_")[0]]
         t0 = time.perf_counter()
         step = space.resolution / 5
-        margin = self.cw.motion_bound(group) * step * (FINE_BLOCK // 2) + MARGIN_SLACK
-        clear = self.cw.checker_for(group, q, margin=margin) if math.isfinite(margin) else None
-        ok = points_valid(space.densify(list(path), step), check, clear)
+        ok = points_valid(space.densify(list(path), step), check, self._certificate(q, group, step * (FINE_BLOCK // 2)))
         if acc is not None:
             acc[0] += time.perf_counter() - t0
         return ok
