@@ -227,7 +227,8 @@ def test_a_hanging_task_planner_process_is_killed_at_its_limit(monkeypatch):
     assert calls[0]["status"] == "timeout" and "the task planner 'pyperplan' timed out" in calls[0]["reason"]
 
 
-def test_ctrl_c_during_plan_writes_the_trace_and_exits_130(plugin_dir, tmp_path):
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM", "SIGHUP"])  # Ctrl-C; kill, timeout, CI; a closed terminal
+def test_a_signal_during_plan_writes_the_trace_and_exits_130(plugin_dir, tmp_path, sig):
     folder = plugin_dir("il_slow", """
         import sys, time
         from interlayer import hookimpl
@@ -242,7 +243,7 @@ def test_ctrl_c_during_plan_writes_the_trace_and_exits_130(plugin_dir, tmp_path)
             registry.add("slow:pick", pick, "sleeps")
     """)
     out = tmp_path / "run"
-    env = dict(os.environ, PYTHONPATH=str(folder))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(folder), os.environ.get("PYTHONPATH", "")]))  # this checkout first
     env.pop("INTERLAYER_DEBUG", None)
     # A shell's background job (CI run with `&`) starts with SIGINT ignored, and so would the CLI:
     # give it the default disposition, as in a terminal.
@@ -252,10 +253,12 @@ def test_ctrl_c_during_plan_writes_the_trace_and_exits_130(plugin_dir, tmp_path)
     for line in proc.stderr:
         if "generating" in line:
             break
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(getattr(signal, sig))
     err = proc.stderr.read()
     assert proc.wait(timeout=60) == 130, err
     assert "Traceback" not in err and "interrupted" in err
     events = json.loads((out / "trace.json").read_text())["events"]
     assert events[-1]["type"] == "end" and events[-1]["status"] == "interrupted"
     assert any(e["type"] == "task_plan" for e in events)
+    assert json.loads((out / "result.json").read_text())["status"] == "interrupted"
+    assert not (out / "trajectory.json").exists()

@@ -42,34 +42,38 @@ ACTED_ON = (1.0, 0.55, 0.0, 1.0)
 class Run:
     """Everything written to an OUT_DIR, plus the rebuilt problem (or why not)."""
 
-    def __init__(self, out_dir):
+    def __init__(self, out_dir, need_trace: bool = False, need_problem: bool = False):
+        from interlayer import api, runfolder
         from interlayer.errors import UserError
+        from interlayer.plugins import PluginHost
 
         self.dir = Path(out_dir)
-        if not (self.dir / "result.json").exists():
-            raise UserError(f"{self.dir} has no result.json; give a folder written by 'interlayer plan --out'.")
-        self.result = _read(self.dir / "result.json") or {}
-        self.events = (_read(self.dir / "trace.json") or {}).get("events", [])
-        self.trajectory = _read(self.dir / "trajectory.json")
-        self.problem_json = _read(self.dir / "problem.json") or {}
+        self.result = runfolder.read_result(self.dir)
+        self.events = runfolder.read_trace(self.dir, required=need_trace) or []
+        self.trajectory = runfolder.read_trajectory(self.dir, required=False)
+        self.problem_json = runfolder.read_json(self.dir / "problem.json", required=False) or {}
         self.problem, self.problem_error = None, None
+        config = api.resolve_config(self.dir)  # a damaged config.toml is the folder's fault: named
         try:
-            from interlayer import api
-            from interlayer.plugins import PluginHost
-
-            self.problem = api.build_problem(PluginHost(), api.resolve_config(self.dir))
-        except Exception as exc:  # still explain the run, without 3D views
+            self.problem = api.build_problem(PluginHost(), config)
+        except Exception as exc:  # e.g. its plugin is not installed here: still explain the run, without 3D views
+            if need_problem and isinstance(exc, UserError):
+                raise
             self.problem_error = f"{type(exc).__name__}: {exc}"
+        if (self.result["status"] == "solved" and self.trajectory is None
+                and hasattr(getattr(self.problem, "geometry", None), "trajectory_json")):
+            raise UserError(f"{self.dir} has no trajectory.json although its result.json says solved; "
+                            f"{runfolder.REWRITE}.")
 
     @property
     def name(self) -> str:
-        return self.problem_json.get("name") or (self.problem.name if self.problem else self.dir.name)
+        return str(self.problem_json.get("name") or (self.problem.name if self.problem else self.dir.name))
 
+    def reading(self, name: str):
+        """Content of ``name`` in a shape this page did not expect: the file's fault, named."""
+        from interlayer.runfolder import reading
 
-def _read(path: Path):
-    if not path.exists():
-        return None
-    return json.loads(path.read_text())
+        return reading(self.dir / name)
 
 
 def drawer(problem):
@@ -239,11 +243,12 @@ class MeshcatVisualizer:
     def plan_page(self, out_dir, path) -> Path:
         from .page import html_page, scene_embed, write_page
 
-        run = Run(out_dir)
+        run = Run(out_dir, need_problem=True)  # the page is its 3D view
         plan = run.result.get("plan") or []
         solved = run.result.get("status") == "solved"
         title = f"{run.name}: refined plan" if solved else f"{run.name}: not solved"
-        scene, starts = solution_scene(run, run.trajectory if solved else None, title)
+        with run.reading("trajectory.json"):
+            scene, starts = solution_scene(run, run.trajectory if solved else None, title)
         cap = [f"<h1>{escape(title)}</h1>"]
         if solved:
             cap.append(f'<div class="note">{len(plan)} step(s), solved in {_secs(run.result.get("times", {}).get("total"))}; '
@@ -269,7 +274,7 @@ class MeshcatVisualizer:
     def explain_page(self, out_dir, path) -> Path:
         from .page import html_page, write_page
 
-        run = Run(out_dir)
+        run = Run(out_dir, need_trace=True)
         title = f"{run.name}: how the plan was found" if run.result.get("status") == "solved" \
             else f"{run.name}: what the planner tried"
         body = _Explainer(run).render(title)
@@ -427,9 +432,11 @@ class _Explainer:
         out = [f"<h1>{escape(title)}</h1>",
                f'<p><span class="badge {cls}">{escape(status)}</span> '
                f'{escape(r.get("reason") or "")} <span class="muted">{escape(str(self.run.dir))}</span></p>']
-        out.append(self.summary())
-        out.append(self.timeline_section())
-        out.append(self.solution())
+        with self.run.reading("trace.json"):
+            out.append(self.summary())
+            out.append(self.timeline_section())
+        with self.run.reading("trajectory.json"):
+            out.append(self.solution())
         return "\n".join(out)
 
     # -- summary ---------------------------------------------------------------------------

@@ -2,11 +2,10 @@
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import config as cfg
+from . import config as cfg, runfolder
 from .abstraction import TaskModel, abstract
 from .errors import UserError
 from .faults import ComponentFailed, Guarded, PluginFault, blame, blamed
@@ -235,27 +234,24 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
 
 
 def write_outputs(result: Result, out_dir) -> Path:
-    """OUT_DIR: result.json, config.toml (with its seed), problem.json, trace.json, trajectory.json."""
+    """OUT_DIR: result.json, config.toml (with its seed), problem.json, trace.json, trajectory.json,
+    written as one set (result.json last; a stale trajectory.json of an earlier run removed)."""
     out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"Cannot create the output folder {out}: {exc.strerror}.") from None
-    _write(out / "result.json", result.to_json())
-    (out / "config.toml").write_text(cfg.to_toml(result.config))
     problem = result.problem
-    _write(out / "problem.json", {"name": problem.name, "source": problem.source, "objects": dict(problem.objects),
-                                  "init": sorted(" ".join(a) for a in problem.init), "goal": problem.goal})
-    _write(out / "trace.json", result.trace.to_json())
+    files = {"config.toml": cfg.to_toml(result.config),
+             "problem.json": _dumps({"name": problem.name, "source": problem.source, "objects": dict(problem.objects),
+                                     "init": sorted(" ".join(a) for a in problem.init), "goal": problem.goal}),
+             "trace.json": _dumps(result.trace.to_json()),
+             "trajectory.json": None,
+             "result.json": _dumps(result.to_json())}
     if result.solved and hasattr(problem.geometry, "trajectory_json"):
-        _write(out / "trajectory.json", problem.geometry.trajectory_json(result.plan, result.refinement))
+        files["trajectory.json"] = _dumps(problem.geometry.trajectory_json(result.plan, result.refinement))
+    runfolder.write_set(out, files)
     return out
 
 
-def _write(path: Path, data) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1, default=_json_default))
-    os.replace(tmp, path)
+def _dumps(data) -> str:
+    return json.dumps(data, indent=1, default=_json_default)
 
 
 def _json_default(o):
@@ -288,10 +284,9 @@ def validation(out_dir, host: PluginHost | None = None) -> Validation:
     from .planning import check_plan
 
     out = Path(out_dir)
-    for name in ("result.json", "config.toml"):
-        if not (out / name).exists():
-            raise UserError(f"{out} has no {name}; give a folder written by 'interlayer plan --out'.")
-    result = _read_json(out / "result.json")
+    if not (out / "config.toml").exists():
+        raise UserError(f"{out} has no config.toml; give a folder written by 'interlayer plan --out'.")
+    result = runfolder.read_result(out)
     if result.get("status") != "solved":
         return Validation([f"the run did not solve the problem (status {result.get('status')}): nothing to validate"], [])
     config = resolve_config(out)
@@ -311,27 +306,22 @@ def validation(out_dir, host: PluginHost | None = None) -> Validation:
             violations.append(f"task plan: {why}")
     if not (out / "trajectory.json").exists():
         return Validation(violations + ["no trajectory.json: the geometric refinement cannot be checked"], checked)
-    trajectory = _read_json(out / "trajectory.json")
-    mismatch = _steps_mismatch(plan, trajectory.get("steps", []))
+    trajectory = runfolder.read_trajectory(out)
+    mismatch = _steps_mismatch(plan, trajectory["steps"])
     if mismatch:
         return Validation(violations + [mismatch], checked)
     checked.append("trajectory steps match the plan")
     if hasattr(problem.geometry, "validate"):
-        violations += problem.geometry.validate(plan, trajectory)
+        try:
+            violations += problem.geometry.validate(plan, trajectory)
+        except PluginFault as fault:  # the validator choked on the file's content: the file is damaged
+            if not isinstance(fault.cause, (KeyError, IndexError, TypeError, ValueError, AttributeError)):
+                raise
+            raise runfolder.damaged(out / "trajectory.json", f"the domain's validator cannot read it ({fault.sentence()})") from None
         checked.append("trajectory re-checked by the domain")
     else:
         checked.append(f"trajectory NOT re-checked: the domain '{problem.domain.name}' has no trajectory validator")
     return Validation(violations, checked)
-
-
-def _read_json(path: Path) -> dict:
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise UserError(f"{path} is not a readable JSON file ({exc}); rewrite it with 'interlayer plan --out'.") from None
-    if not isinstance(data, dict):
-        raise UserError(f"{path} does not hold a JSON object; rewrite it with 'interlayer plan --out'.")
-    return data
 
 
 def _steps_mismatch(plan, steps) -> str:

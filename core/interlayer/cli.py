@@ -1,4 +1,5 @@
-"""The ``interlayer`` command. Exit codes: 0 solved/ok, 1 not solved/invalid, 2 user error.
+"""The ``interlayer`` command. Exit codes: 0 solved/ok, 1 not solved/invalid, 2 user error, 130 interrupted
+(Ctrl-C, SIGTERM, SIGHUP).
 
 With ``--json`` only one JSON object goes to stdout; logs and progress go to stderr.
 """
@@ -63,18 +64,20 @@ def cmd_plan(args) -> int:
     listeners = [] if args.quiet else [progress_printer(args.verbose)]
     if args.dump_pddl and not args.out:
         raise UserError("--dump-pddl writes into OUT_DIR/pddl/: give --out DIR as well.")
+    if args.out:  # found now, not after the whole plan ran
+        from .runfolder import check_writable
+
+        check_writable(args.out, "The output folder (--out)", folder=True)
     pddl_dir = f"{args.out}/pddl" if args.dump_pddl else None
     try:
         result = api.solve(args.source, overrides=args.set, listeners=listeners, pddl_dir=pddl_dir)
     except Interrupted as stop:  # keep what was done: the trace so far explains the run
+        return _interrupted(args, stop.result, "")
+    try:
         if args.out:
-            api.write_outputs(stop.result, args.out)
-        log(f"interrupted{f'; wrote the trace so far to {args.out}/trace.json' if args.out else ''}")
-        if args.json:
-            print(json.dumps(stop.result.to_json()))
-        return EXIT_INTERRUPTED
-    if args.out:
-        api.write_outputs(result, args.out)
+            api.write_outputs(result, args.out)
+    except KeyboardInterrupt:  # after the solve: the whole set is written (again, if the signal came first)
+        return _interrupted(args, result, " after the problem was solved")
     data = result.to_json()
     if args.json:
         print(json.dumps(data))
@@ -97,6 +100,18 @@ def cmd_plan(args) -> int:
 
         live_view(result)
     return EXIT_OK if result.solved else EXIT_NOT_SOLVED
+
+
+def _interrupted(args, result, when: str) -> int:
+    from . import api
+
+    if args.out:
+        api.write_outputs(result, args.out)
+    what = "the run" if result.solved else "the trace so far"
+    log(f"interrupted{when}{f'; wrote {what} to {args.out}/' if args.out else ''}")
+    if args.json:
+        print(json.dumps(result.to_json()))
+    return EXIT_INTERRUPTED
 
 
 def cmd_check(args) -> int:
@@ -198,16 +213,20 @@ def cmd_validate(args) -> int:
 
 
 def cmd_viz(args) -> int:
+    from .runfolder import check_writable
     from .viz import write_plan_html
 
+    check_writable(args.output, "The page (-o)", folder=False)
     write_plan_html(args.out_dir, args.output, args.visualizer)
     log(f"Wrote {args.output}")
     return EXIT_OK
 
 
 def cmd_explain(args) -> int:
+    from .runfolder import check_writable
     from .viz import write_explain_html
 
+    check_writable(args.output, "The page (-o)", folder=False)
     write_explain_html(args.out_dir, args.output, args.visualizer)
     log(f"Wrote {args.output}")
     return EXIT_OK
@@ -258,8 +277,31 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _signals_interrupt():
+    """SIGTERM (kill, timeout, systemd, CI) and SIGHUP (a closed terminal) stop a run as Ctrl-C does.
+    Returns the handlers to restore."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    sigs = [signal.SIGTERM] + ([signal.SIGHUP] if hasattr(signal, "SIGHUP") else [])
+    return {sig: signal.signal(sig, signal.default_int_handler) for sig in sigs}
+
+
 def main(argv=None) -> int:
+    import signal
+
     args = build_parser().parse_args(argv)
+    saved = _signals_interrupt()
+    try:
+        return _run(args)
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
+
+
+def _run(args) -> int:
     try:
         return args.func(args)
     except UserError as exc:
