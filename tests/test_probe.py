@@ -60,6 +60,7 @@ COMMON = {  # any JSON file
     "truncated": _truncate,
     "not UTF-8": b"\xff\xfe\x00garbage",
     "not an object": "[1, 2]",
+    "nested too deeply": "[" * 100_000 + "]" * 100_000,
 }
 
 
@@ -255,3 +256,105 @@ def test_an_unsolved_run_into_a_solved_folder_leaves_no_stale_trajectory(solved,
     assert json.loads((run / "result.json").read_text())["status"] == "timeout"
     assert sorted(p.name for p in run.iterdir()) == ["config.toml", "problem.json", "result.json", "trace.json"]
 
+
+# --------------------------------------------------------------------------------- scene sanity
+def pbjson_scene(tmp_path, edit=None, name="scene.json"):
+    """The PR2 test scene of test_pbjson (a table, a sink, a stove, boxes a and b), edited."""
+    from test_pbjson import scene
+
+    data = scene(goal_holding="a")
+    if edit:
+        edit(data)
+    path = tmp_path / name
+    path.write_text(json.dumps(data))
+    return path
+
+
+def _move(body, **xyz):
+    def edit(data):
+        b = next(b for b in data["bodies"] if b["name"] == body)
+        b["point"].update(xyz)
+    return edit
+
+
+def _same_pose(data):
+    data["bodies"][4]["point"] = dict(data["bodies"][3]["point"])
+
+
+SCENES = {  # the edit, what check and plan end with, words the sentence must hold
+    "two objects at one pose": (_same_pose, 2, ["a", "b", "interpenetrate"]),
+    "an object in the table": (_move("b", z=0.70), 2, ["b", "table_0", "interpenetrate"]),
+    "an object below the ground": (_move("b", x=3.0, z=-0.5), 2, ["b", "0.500 m below the ground"]),
+}
+
+
+@pytest.mark.parametrize("command", ["check", "plan"])
+@pytest.mark.parametrize("case", sorted(SCENES))
+def test_an_impossible_scene_is_refused_naming_the_objects(tmp_path, case, command):
+    edit, code_wanted, words = SCENES[case]
+    path = pbjson_scene(tmp_path, edit)
+    before = path.read_bytes()
+    code, err = cli(command, path)  # not -q: a plan started would print its progress
+    assert_promise(code, err, code_wanted, case)
+    sentence = next(line for line in err.splitlines() if line.startswith("error: "))
+    assert all(w in sentence for w in words), sentence
+    assert "task plan" not in err and path.read_bytes() == before
+
+
+def test_a_floating_object_is_a_warning_naming_it_and_the_gap(tmp_path):
+    path = pbjson_scene(tmp_path, _move("b", z=1.5))
+    code, err = cli("check", path)
+    assert_promise(code, err, 0)
+    assert "warning: The object b floats 0.750 m above table_0" in err
+    code, err = cli("plan", path, "--set", "planner.time_limit=0.5", "--out", tmp_path / "run")
+    assert code in (0, 1) and "warning: The object b floats 0.750 m above table_0" in err, err
+    events = json.loads((tmp_path / "run" / "trace.json").read_text())["events"]
+    assert any(e["type"] == "warning" and "b floats" in e["message"] for e in events)
+
+
+def test_the_examples_scenes_are_sane():
+    for name in ("pr2_pick", "clutter", "dinner", "drawer"):
+        assert api.prepare(str(ROOT / "examples" / f"{name}.toml")).scene_issues == [], name
+
+
+def _many_bodies(n):
+    def edit(data):
+        for k in range(n):
+            data["bodies"].append({"name": f"o{k}", "point": {"x": 3 + 0.2 * (k % 100), "y": 0.2 * (k // 100), "z": 0.0},
+                                   "quat": {"w": 1.0, "x": 0.0, "y": 0.0, "z": 0.0},
+                                   "links": [[{"type": "box", "extents": [0.03, 0.03, 0.05], "point": {"x": 0, "y": 0, "z": 0.05},
+                                               "quat": {"w": 1.0, "x": 0.0, "y": 0.0, "z": 0.0}}]]})
+            data["task"]["object_names"].append(f"o{k}")
+    return edit
+
+
+@pytest.mark.parametrize("command", ["check", "plan"])
+def test_ten_thousand_bodies_are_refused_at_once_naming_the_limit(tmp_path, command):
+    path = pbjson_scene(tmp_path, _many_bodies(10_000), "huge.json")
+    code, err = cli(command, path)
+    assert_promise(code, err, 2)
+    assert "huge: the scene has 10005 bodies; Interlayer plans with at most 500" in err
+
+
+DEEP = 100_000
+
+
+@pytest.mark.parametrize("case", ["json problem", "json inside bodies", "toml config", "--set value"])
+def test_a_deeply_nested_file_is_a_user_error_naming_it(tmp_path, case):
+    if case == "json problem":
+        path = tmp_path / "deep.json"
+        path.write_text("[" * DEEP + "]" * DEEP)
+        args, words = ["plan", path], [str(path), "nested too deeply"]
+    elif case == "json inside bodies":
+        path = tmp_path / "deep.json"
+        path.write_text('{"bodies": ' + "[" * DEEP + "]" * DEEP + ', "robots": [], "task": {}}')
+        args, words = ["plan", path], [str(path), "nested too deeply"]
+    elif case == "toml config":
+        path = tmp_path / "deep.toml"
+        path.write_text("a = " + "[" * DEEP + "]" * DEEP + "\n")
+        args, words = ["plan", path], [str(path), "nested too deeply"]
+    else:
+        args, words = ["plan", EXAMPLE, "--set", "planner.seed=" + "[" * DEEP], ["planner.seed"]
+    code, err = cli(*args)
+    assert_promise(code, err, 2, case)
+    assert all(w in err for w in words) and "plugin" not in err, err

@@ -47,7 +47,7 @@ def resolve_config(source, overrides=None) -> dict:
     return config
 
 
-GEOMETRY_METHODS = ("initial_world", "refine_step", "snapshot", "trajectory_json", "validate")
+GEOMETRY_METHODS = ("initial_world", "refine_step", "snapshot", "trajectory_json", "validate", "scene_issues")
 
 
 def build_problem(host: PluginHost, config: dict):
@@ -179,6 +179,14 @@ class Prepared:
     translators: list
     stats: Stats
     cartesian: object = None  # planner.cartesian, for a geometry with a ``cartesian`` attribute
+    scene_issues: list = ()  # ("error" | "warning", sentence): the domain's own check of its scene
+
+
+def scene_issues(problem) -> list:
+    """The domain's sentences about its scene at the initial poses (``geometry.scene_issues()``,
+    optional): ("error", ...) for scenes no plan can start from, ("warning", ...) for doubtful ones."""
+    check = getattr(problem.geometry, "scene_issues", None)
+    return [(str(kind), str(sentence)) for kind, sentence in check()] if callable(check) else []
 
 
 def prepare(source, overrides=None, host: PluginHost | None = None) -> Prepared:
@@ -193,7 +201,7 @@ def prepare(source, overrides=None, host: PluginHost | None = None) -> Prepared:
     task, motion = make_planners(host, config, stats)
     cartesian = make_motion_planner(host, config, config["planner"]["cartesian"], stats)
     return Prepared(config, problem, model, task, motion, generators_for(host, model, config),
-                    translators_for(host, config), stats, cartesian)
+                    translators_for(host, config), stats, cartesian, scene_issues(problem))
 
 
 def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), pddl_dir=None) -> Result:
@@ -206,6 +214,10 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
     host = host or PluginHost()
     run = prepare(source, overrides, host)
     config, problem, model, stats = run.config, run.problem, run.model, run.stats
+    errors = [sentence for kind, sentence in run.scene_issues if kind == "error"]
+    if errors:  # e.g. two objects in one another: no plan can start there
+        more = f" ({len(errors) - 1} more: see 'interlayer check')" if len(errors) > 1 else ""
+        raise UserError(errors[0][:-1] + more + ".")
     run.task.pddl_dir = pddl_dir
     p = config["planner"]
     settings = LoopSettings(time_limit=float(p["time_limit"]), max_traj_count=p["max_traj_count"],
@@ -216,7 +228,7 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
     if hasattr(run.motion, "prepare"):
         run.motion.prepare()
     trace = Trace([host.on_event, *listeners])
-    for warning in host.warnings:
+    for warning in [*host.warnings, *(sentence for kind, sentence in run.scene_issues if kind != "error")]:
         trace.emit("warning", message=warning)
     trace.emit("start", problem=problem.name, references=len(model.references), config=config)
     if hasattr(problem.geometry, "stats"):

@@ -139,10 +139,14 @@ def cmd_check(args) -> int:
         "parameters": model.parameter_roles,
         "task_view": {a.name: [f"{v} - {t}" for v, t in a.parameters] for a in model.actions.values()},
         **({"scene": scene} if scene else {}),
+        "scene_issues": [{"kind": kind, "message": sentence} for kind, sentence in prepared.scene_issues],
     }
+    refused = any(kind == "error" for kind, _ in prepared.scene_issues)  # 'plan' would refuse the scene
+    for kind, sentence in prepared.scene_issues:
+        log(f"{kind}: {sentence}")
     if args.json:
         print(json.dumps(report, indent=1))
-        return EXIT_OK
+        return EXIT_USER_ERROR if refused else EXIT_OK
     if scene:
         print(f"Scene: {scene}")
     print(f"Pose references ({len(model.references)}):")
@@ -163,7 +167,7 @@ def cmd_check(args) -> int:
     else:
         print("Uniform w.r.t. the goal and the geometric predicates (Def. 1): Theorem 1's completeness holds "
               "if the problem also has no reachable dead ends (not checked).")
-    return EXIT_OK
+    return EXIT_USER_ERROR if refused else EXIT_OK
 
 
 def cmd_plugins(args) -> int:

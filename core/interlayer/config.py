@@ -39,13 +39,15 @@ def load_toml(path: Path) -> dict:
         raise UserError(f"The config file {path} is not UTF-8 text (byte {exc.start}); save it as UTF-8.") from None
     except OSError as exc:
         raise UserError(f"Cannot read the config file {path}: {exc.strerror}.") from None
+    except RecursionError:
+        raise UserError(f"The config file {path} is nested too deeply to read; flatten its values.") from None
 
 
 def parse_value(text: str):
     """A --set value: TOML/JSON literal when it parses (numbers, booleans, lists), else a string."""
     try:
         return tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
+    except (tomllib.TOMLDecodeError, RecursionError):
         return text
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import sys
 
 import numpy as np
 
@@ -29,6 +30,9 @@ def looks_like_pybullet_json(path) -> dict | None:
         data = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
+    except RecursionError:  # the file's fault, not this plugin's
+        raise UserError(f"{path} is nested too deeply to read as JSON (over {sys.getrecursionlimit()} levels); "
+                        f"give a pybullet-planning problem file.") from None
     if not isinstance(data, dict) or not {"bodies", "robots", "task"} <= set(data):
         return None
     return data

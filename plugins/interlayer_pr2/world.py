@@ -141,6 +141,13 @@ class PR2Geometry:
             g = self.robot.group(f"{arm}_arm")
             self.arm_space[arm] = ConfigSpace("vector", tuple(g.lower), tuple(g.upper), (False,) * g.dof, RES_ARM)
 
+    def scene_issues(self) -> list:
+        """Interpenetrating, floating and buried objects at their initial poses (see sanity.py)."""
+        from .sanity import scene_issues
+
+        return scene_issues(self.layout.fixed, self.layout.objects, self.layout.extra.get("floors", ()),
+                            self._initial_riders)
+
     # -- world ----------------------------------------------------------------------------------
     def initial_world(self) -> World:
         from interlayer_pinocchio import TUCKED_ARMS
