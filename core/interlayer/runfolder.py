@@ -41,8 +41,9 @@ def check_writable(path, what: str, folder: bool) -> None:
 # ------------------------------------------------------------------------------------ writing
 @contextlib.contextmanager
 def signals_deferred():
-    """SIGINT, SIGTERM and SIGHUP wait until the block ends (then raise KeyboardInterrupt), so
-    that a folder is never left half written. Does nothing outside the main thread."""
+    """SIGINT, SIGTERM and SIGHUP wait until the block ends (then reach the handlers they would have
+    met: KeyboardInterrupt in 'interlayer'), so that a folder is never left half written. Does
+    nothing outside the main thread."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -55,8 +56,8 @@ def signals_deferred():
     finally:
         for sig, handler in saved.items():
             signal.signal(sig, handler)
-    if caught:
-        raise KeyboardInterrupt
+    for sig in dict.fromkeys(caught):
+        signal.raise_signal(sig)
 
 
 def write_set(out: Path, files: dict, last: str = "result.json") -> None:
