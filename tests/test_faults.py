@@ -1,6 +1,7 @@
 """Faults in plugins are contained and attributed; bad plugins never break the rest of the CLI.
 
 Each test installs a small throwaway plugin through a real entry point (a dist-info on sys.path)."""
+import contextlib
 import json
 import os
 import signal
@@ -262,3 +263,29 @@ def test_a_signal_during_plan_writes_the_trace_and_exits_130(plugin_dir, tmp_pat
     assert any(e["type"] == "task_plan" for e in events)
     assert json.loads((out / "result.json").read_text())["status"] == "interrupted"
     assert not (out / "trajectory.json").exists()
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").exists(), reason="reads a process's children from /proc")
+def test_a_signal_to_the_whole_group_stops_a_task_planner_child_without_its_traceback(tmp_path):
+    # `timeout` and a terminal's Ctrl-C signal the whole process group: the forked task-planner child too
+    env = {k: v for k, v in os.environ.items() if k != "INTERLAYER_DEBUG"}
+    proc = subprocess.Popen([sys.executable, "-m", "interlayer.cli", "plan", EXAMPLE, "-q", "--out", str(tmp_path / "run"),
+                             "--set", "problem.obstructions=5", "--set", "planner.task=pyperplan",
+                             "--set", "planner.time_limit=300"], stderr=subprocess.PIPE, text=True, env=env,
+                            start_new_session=True)
+    children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children")
+
+    def child_at_work():  # a child that has used 50 ms of CPU: inside the engine (a state, not a time)
+        for pid in children.read_text().split():
+            with contextlib.suppress(OSError):
+                if sum(int(v) for v in Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[11:13]) >= 5:
+                    return True
+        return False
+
+    while proc.poll() is None and not child_at_work():
+        time.sleep(0.005)
+    assert proc.poll() is None, "the run ended before its task planner's process started"
+    os.killpg(proc.pid, signal.SIGTERM)
+    err = proc.communicate(timeout=60)[1]
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "interrupted" in err, err

@@ -352,8 +352,11 @@ def _solve(engine_name, params, problem, timeout, warm=False):
 
 
 def _child(conn, engine_name, params, problem, timeout):
+    import signal
     import warnings
 
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # sent to the whole group (Ctrl-C, timeout):
+        signal.signal(sig, signal.SIG_DFL)  # end at once, without a traceback; the parent reports the stop
     warnings.filterwarnings("ignore", message=".*does not support timeout")  # we enforce it here
     try:
         _quiet_environment()
