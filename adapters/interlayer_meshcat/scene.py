@@ -717,10 +717,12 @@ class Scene:
         self._anim_frames = [dict(zip(names, rows[i])) for i in sample]
         changed = np.abs(np.diff(rows, axis=0)).max(axis=(2, 3)) > 1e-9 if n > 1 else np.zeros((0, len(names)), bool)
         animations = []
-        for j, name in enumerate(names):
-            seq = rows[:, j]
-            if not changed[:, j].any() and np.allclose(seq[0], self._poses.get(name, np.eye(4)), atol=1e-9):
-                continue                  # never moves: no track
+        moving = [j for j, name in enumerate(names)
+                  if changed[:, j].any() or not np.allclose(rows[0, j], self._poses.get(name, np.eye(4)), atol=1e-9)]
+        if tolerance is not None and moving:
+            kept = _keyframes(rows[:, moving].transpose(1, 0, 2, 3), *tolerance)
+        for c, j in enumerate(moving):     # names that never move have no track
+            name, seq = names[j], rows[:, j]
             if tolerance is None:
                 # keep the ends of every constant run (exact hold + interpolation)
                 moves = changed[:, j]
@@ -730,7 +732,7 @@ class Scene:
                 keep[:-1] |= moves
                 idx = np.flatnonzero(keep)
             else:
-                idx = _keyframes(seq, *tolerance)
+                idx = kept[c]
             pos = seq[idx, :3, 3]
             quat = _quaternions(seq[idx, :3, :3])
             times = _f32(idx)
@@ -935,22 +937,27 @@ def _quaternions(R):
     return q
 
 
-def _keyframes(seq, tol_pos: float, tol_rot: float) -> np.ndarray:
-    """Indices of the frames of ``seq`` (N,4,4) to keep so that interpolating between them
-    (linear positions, slerp rotations, as three.js does) passes within ``tol_pos`` metres and
-    ``tol_rot`` radians of every frame: each round splits every span that strays at its worst
-    frame (Douglas-Peucker, all spans of a round at once)."""
-    n = len(seq)
+def _keyframes(seqs, tol_pos: float, tol_rot: float) -> list:
+    """For each of the ``seqs`` (M,N,4,4: M tracks of N frames), the indices of the frames to keep
+    so that interpolating between them (linear positions, slerp rotations, as three.js does) passes
+    within ``tol_pos`` metres and ``tol_rot`` radians of every frame. Each round splits every span
+    that strays at its worst frame (Douglas-Peucker, all spans of all tracks at once: the tracks
+    are laid end to end with both ends of each kept)."""
+    m, n = seqs.shape[:2]
+    seq = seqs.reshape(m * n, 4, 4)
     P, Q = seq[:, :3, 3], _quaternions(seq[:, :3, :3])
-    keep = np.zeros(n, bool)
-    keep[[0, n - 1]] = True
-    t = np.arange(n)
+    keep = np.zeros((m, n), bool)
+    keep[:, [0, n - 1]] = True
+    keep = keep.reshape(-1)
+    active = ~keep                    # frames in spans not yet known to be within the tolerance
     while True:
-        k = np.flatnonzero(keep)
-        seg = np.minimum(np.searchsorted(k, t, side="right") - 1, len(k) - 2)
+        k, f = np.flatnonzero(keep), np.flatnonzero(active)
+        if not len(f):
+            return [np.flatnonzero(row) for row in keep.reshape(m, n)]
+        seg = np.searchsorted(k, f, side="right") - 1
         a, b = k[seg], k[seg + 1]
-        u = ((t - a) / (b - a))[:, None]
-        err_p = np.linalg.norm(P - (P[a] + u * (P[b] - P[a])), axis=1) / tol_pos
+        u = ((f - a) / (b - a))[:, None]
+        err_p = np.linalg.norm(P[f] - (P[a] + u * (P[b] - P[a])), axis=1) / tol_pos
         dot = np.sum(Q[a] * Q[b], axis=1)
         qb = Q[b] * np.where(dot < 0, -1.0, 1.0)[:, None]
         th = np.arccos(np.clip(np.abs(dot), 0.0, 1.0))[:, None]
@@ -959,11 +966,11 @@ def _keyframes(seq, tol_pos: float, tol_rot: float) -> np.ndarray:
         Qi = (np.where(small, 1 - u, np.sin((1 - u) * th) / sin_th) * Q[a]
               + np.where(small, u, np.sin(u * th) / sin_th) * qb)
         Qi /= np.linalg.norm(Qi, axis=1, keepdims=True)
-        err_r = 2.0 * np.arccos(np.clip(np.abs(np.sum(Qi * Q, axis=1)), 0.0, 1.0)) / tol_rot
+        err_r = 2.0 * np.arccos(np.clip(np.abs(np.sum(Qi * Q[f], axis=1)), 0.0, 1.0)) / tol_rot
         err = np.maximum(err_p, err_r)
-        err[keep] = 0.0
-        if not (err > 1.0).any():
-            return k
         order = np.lexsort((-err, seg))                 # by span, worst frame first
         first = order[np.r_[True, seg[order][1:] != seg[order][:-1]]]
-        keep[first[err[first] > 1.0]] = True
+        worst = first[err[first] > 1.0]
+        keep[f[worst]] = True
+        active[f] = np.isin(seg, seg[worst])            # only the spans just split are looked at again
+        active[keep] = False
