@@ -217,3 +217,16 @@ def test_report_on_a_small_database(dask_db, tmp_path):
 def test_report_names_a_missing_database(tmp_path, capsys):
     assert main(["report", str(tmp_path / "none.sqlite"), "--out", str(tmp_path / "r")]) == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_rows_of_one_name_in_two_suites_are_told_apart_in_the_plots():
+    """The dinner suite repeats Table I's Dinner rows: the histogram and the time split name the suite
+    (issue 23: the histogram showed Dinner-2/4/6 twice under the same titles)."""
+    from interlayer.bench.report import _label
+
+    groups = {("table1", "Dinner-2", "default", 120.0): [], ("dinner", "Dinner-2", "default", 120.0): [],
+              ("table1", "Drawer (O)", "default", 120.0): []}
+    assert _label(("dinner", "Dinner-2", "default", 120.0), groups) == "dinner: Dinner-2"
+    assert _label(("table1", "Dinner-2", "default", 120.0), groups) == "table1: Dinner-2"
+    assert _label(("table1", "Drawer (O)", "default", 120.0), groups) == "Drawer (O)"
+    assert _label(("table1", "Dinner-2", "default", 120.0), groups, suite=False) == "Dinner-2"  # a suite's own table
