@@ -30,7 +30,7 @@ PBJSON = ROOT.parent / "shared" / "benchmarks" / "pybullet-planning-json"
 # "what is run" is a config or problem file and its --set overrides; {pbjson} is the --pbjson folder.
 # "when": (step, fraction) = that far into that plan step's motion, or milliseconds after loading.
 IMAGES = {
-    "gripper2d-plan": ("gripper2d-plan.png", ["examples/gripper2d.toml"], "viz", (1000, 700), (1, 0.5)),
+    "gripper2d-plan": ("gripper2d-plan.png", ["examples/gripper2d.toml"], "viz", (1000, 700), (3, 0.5)),
     "gripper2d-explain": ("gripper2d-explain.png", ["examples/gripper2d.toml"], "explain", (1000, 1400), 6000),
     "pr2-plan": ("pr2-plan.png", ["examples/pr2_pick.toml"], "viz", (1000, 700), (3, 0.6)),
     "pr2-explain": ("pr2-explain.png", ["examples/pr2_pick.toml"], "explain", (1000, 1400), 6000),

@@ -141,6 +141,28 @@ def probe_page(html_path, budget_ms: int = 2500, *, wait_ms: int = 1200) -> dict
     return json.loads(_html.unescape(m.group(1)))
 
 
+def evaluate(html_path, js_function: str, *, wait_ms: int = 1500, budget_ms: int = 2500, size=(800, 600)):
+    """The JSON value ``js_function`` (JS source of a function of no argument) returns in a copy of
+    the page, called ``wait_ms`` after loading (within ``budget_ms`` of virtual time)."""
+    import html as _html
+    import json
+    import re
+
+    src = Path(html_path).read_text(encoding="utf-8")
+    tail = ('<script>setTimeout(function(){var pre=document.createElement("pre");pre.id="il-eval";'
+            f'pre.textContent=JSON.stringify(({js_function})());document.body.appendChild(pre);}}, {int(wait_ms)});</script>')
+    i = src.lower().rfind("</body>")
+    src = src[:i] + tail + src[i:] if i >= 0 else src + tail
+    with tempfile.TemporaryDirectory(prefix="il-eval-") as d:
+        copy = Path(d) / Path(html_path).name
+        copy.write_text(src, encoding="utf-8")
+        dom = dump_dom(copy, budget_ms, size=size)
+    m = re.search(r'<pre id="il-eval">(.*?)</pre>', dom, re.S)
+    if not m:
+        raise RuntimeError("evaluate: no result in the DOM (page did not finish loading?)")
+    return json.loads(_html.unescape(m.group(1)))
+
+
 # ------------------------------------------------------------------ PNG decode
 def _paeth_row(cur: bytearray, prev: bytes, bpp: int) -> None:
     for i in range(len(cur)):

@@ -409,12 +409,6 @@ def test_embedded_views_render(tmp_path, need_chromium):
     assert blue_mask(views[2]).mean() > 0.02
 
 
-_LABEL_BOXES = """<script>setTimeout(function(){
-var r=Array.prototype.map.call(document.querySelectorAll(".il-label"),function(e){
-var b=e.getBoundingClientRect();return [e.textContent,e.classList.contains("il-dot"),b.left,b.top,b.right,b.bottom,e.style.display];});
-var pre=document.createElement("pre");pre.id="il-labels-probe";pre.textContent=JSON.stringify(r);document.body.appendChild(pre);},1500);</script>"""
-
-
 def test_crowded_labels_do_not_overlap(tmp_path, need_chromium):
     """40 labelled cans packed on a table: every label is on the page, the tags shown in full do not
     overlap (the rest are dots with the name on hover), and the high-priority one is shown in full."""
@@ -426,11 +420,12 @@ def test_crowded_labels_do_not_overlap(tmp_path, need_chromium):
         s.label(f"o{i}/label", f"object{i}", [0, 0, 0.09], priority=2 if i == 23 else 0)
         s.set_pose(f"o{i}", [x, y, 0.06])
     page = s.write_html(tmp_path / "crowded.html")
-    html = page.read_text(encoding="utf-8")
-    probe = tmp_path / "probe.html"
-    probe.write_text(html.replace("</body>", _LABEL_BOXES + "</body>"), encoding="utf-8")
-    dom = browser.dump_dom(probe, budget_ms=2500, size=(800, 600))
-    boxes = json.loads(unescape(re.search(r'<pre id="il-labels-probe">(.*?)</pre>', dom, re.S).group(1)))
+    boxes = browser.evaluate(page, """function () {
+      return Array.prototype.map.call(document.querySelectorAll(".il-label"), function (e) {
+        var b = e.getBoundingClientRect();
+        return [e.textContent, e.classList.contains("il-dot"), b.left, b.top, b.right, b.bottom, e.style.display];
+      });
+    }""")
     assert sorted(b[0] for b in boxes) == sorted(f"object{i}" for i in range(40))
     shown = [b for b in boxes if not b[1] and b[6] != "none"]
     dots = [b for b in boxes if b[1]]
