@@ -948,6 +948,9 @@ def _keyframes(seqs, tol_pos: float, tol_rot: float) -> list:
     P, Q = seq[:, :3, 3], _quaternions(seq[:, :3, :3])
     keep = np.zeros((m, n), bool)
     keep[:, [0, n - 1]] = True
+    if n > 2:  # and where a track starts or stops moving: holds are exact, and far fewer rounds
+        moves = np.abs(np.diff(seqs, axis=1)).max(axis=(2, 3)) > 1e-9
+        keep[:, 1:-1] |= moves[:, :-1] != moves[:, 1:]
     keep = keep.reshape(-1)
     active = ~keep                    # frames in spans not yet known to be within the tolerance
     while True:
@@ -968,9 +971,13 @@ def _keyframes(seqs, tol_pos: float, tol_rot: float) -> list:
         Qi /= np.linalg.norm(Qi, axis=1, keepdims=True)
         err_r = 2.0 * np.arccos(np.clip(np.abs(np.sum(Qi * Q[f], axis=1)), 0.0, 1.0)) / tol_rot
         err = np.maximum(err_p, err_r)
-        order = np.lexsort((-err, seg))                 # by span, worst frame first
-        first = order[np.r_[True, seg[order][1:] != seg[order][:-1]]]
-        worst = first[err[first] > 1.0]
-        keep[f[worst]] = True
-        active[f] = np.isin(seg, seg[worst])            # only the spans just split are looked at again
+        # f is sorted, so each span's frames are one run of it: the worst frame of each run
+        starts = np.flatnonzero(np.r_[True, seg[1:] != seg[:-1]])
+        counts = np.diff(np.r_[starts, len(f)])
+        top = np.maximum.reduceat(err, starts)
+        split = top > 1.0
+        at = np.flatnonzero(err == np.repeat(top, counts))
+        first = at[np.r_[True, seg[at][1:] != seg[at][:-1]]]  # one frame per span
+        keep[f[first[split]]] = True
+        active[f] = np.repeat(split, counts)            # only the spans just split are looked at again
         active[keep] = False
