@@ -1,0 +1,155 @@
+"""The core's semantics (issue 22, item 9): each test here is made to fail by a mutation of the core
+that the rest of the suite let through (named in each docstring), or by removing the behaviour it names.
+
+The geometry is the scripted test double of test_loop.py; the task planner is the real Fast Downward.
+"""
+from pathlib import Path
+
+import pytest
+from test_loop import SPEC, ScriptedGeometry, by_epoch, events, generator
+
+from interlayer.abstraction import abstract
+from interlayer.domain import GroundStep, Problem
+from interlayer.loop import InterfaceLayer, LoopSettings
+from interlayer.refine import Failure
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+class RecordingGeometry(ScriptedGeometry):
+    """Records (item, world) of every refinement; the script may read the loop's epoch."""
+
+    def __init__(self, script):
+        super().__init__(script)
+        self.seen = []
+        self.layer = None
+
+    def refine_step(self, step, world, candidate, motion):
+        self.seen.append((step.args[0], world))
+        return super().refine_step(step, world, candidate, motion)
+
+
+def layer_for(host, script, goal="(Done a)", items=("a", "b", "z"), takeable=("a", "b"), gen=None, task=None,
+              **settings):
+    geometry = RecordingGeometry(script)
+    problem = Problem(SPEC, {i: "item" for i in items}, frozenset(("Takeable", t) for t in takeable), goal, geometry, {})
+    task = task or host["task_planners"].get("fast-downward").factory({})
+    translators = [("templates", host["failure_translators"].get("templates").factory)]
+    layer = InterfaceLayer(abstract(problem), task, None, {"take": gen or generator()}, translators,
+                           LoopSettings(**{"time_limit": 10.0, **settings}))
+    geometry.layer = layer
+    return layer, geometry
+
+
+def test_a_replan_refines_on_from_the_failing_step_and_its_world(host):
+    """Alg. 1, line 13 (pose1 <- pose2; step <- failStep): after a replan at step 1, the error-free
+    pass starts at step 1 from the world the prefix left, and the prefix is not refined again.
+    Mutation: ``step, prefix, world = 0, {}, world0`` after a replan (refine all over again)."""
+    def script(item, label, world, n):  # the second item taken is blocked by y until y is taken
+        return Failure("obstruction", ("y",)) if item != "y" and len(world) == 1 and "y" not in world else None
+
+    layer, geometry = layer_for(host, script, goal="(and (Done a) (Done b))", items=("a", "b", "y"),
+                                takeable=("a", "b", "y"))
+    result = layer.solve()
+    assert result.status == "solved", result.reason
+    replan = events(result, "replan")[0]
+    assert replan["fail_step"] == 1 and len(replan["prefix"]) == 1
+    first = replan["prefix"][0]["args"][0]  # the item the kept prefix took
+    after = result.trace.events[result.trace.events.index(replan) + 1:]
+    refine = next(e for e in after if e["type"] == "refine")
+    assert refine["mode"] == "error-free" and refine["from_step"] == 1
+    attempts = [e for e in after if e["type"] == "attempt"]
+    assert attempts and all(e["step"] >= 1 for e in attempts)
+    # the first refinement after the replan (take y) starts from the world where the prefix ended
+    calls_before = sum(1 for e in result.trace.events[: result.trace.events.index(replan)]
+                       if e["type"] == "attempt" and not e["cached"])
+    assert geometry.seen[calls_before] == ("y", frozenset({first}))
+
+
+def test_a_reset_takes_the_learned_facts_out_of_the_symbolic_state(host):
+    """Alg. 1, line 15: facts learned and replanned on in one epoch are not in the state the next
+    epoch replans from. Epoch 0 learns (Obstructs b gp_a a) and replans [take b, take a]; take b then
+    fails on z (a dead end) and MaxTrajCount resets. Epoch 1 fails take b on y: replanning from the
+    initial state without the old fact needs only take a.
+    Mutation: keep ``states`` at a reset (drop ``states = self.progress_all(init, self.plan)``)."""
+    def script(item, label, world, n):
+        if item == "a" and "b" not in world:
+            return Failure("obstruction", ("b",))
+        if item == "b":
+            if geometry.layer.epoch == 0:
+                return Failure("obstruction", ("z",))
+            if "y" not in world:
+                return Failure("obstruction", ("y",))
+        return None
+
+    layer, geometry = layer_for(host, script, items=("a", "b", "y", "z"), takeable=("a", "b", "y"), max_traj_count=1)
+    result = layer.solve()
+    assert result.status == "solved", result.reason
+    resets = events(result, "reset")
+    assert resets and resets[0]["epoch"] == 1
+    replans = by_epoch(result, "replan", lambda e: [e])
+    assert replans[1][0]["new_plan"] == [{"action": "take", "args": ["a", "gp_a"]}]
+    # and the old fact is learned again in the new epoch, as a fact the state did not hold
+    learned = by_epoch(result, "failure", lambda e: e["facts"])
+    assert "(Obstructs b gp_a a)" in learned[0] and "(Obstructs b gp_a a)" in learned[1]
+
+
+@pytest.mark.parametrize("max_traj_count", [1, 3])
+def test_max_traj_count_bounds_the_refinements_tried_for_one_plan(host, max_traj_count):
+    """Alg. 1, line 14: the reset comes after exactly MaxTrajCount partial refinements that led to a
+    dead end, not before, and not only once the partial pass runs out (six are on offer here).
+    Mutations: ``traj_count > max_traj_count``, ``>= max_traj_count - 1``, the check removed."""
+    labels = [f"c{k}" for k in range(6)]
+
+    def script(item, label, world, n):  # in epoch 0 candidate ck is blocked by zk, which nothing can take
+        return Failure("obstruction", (f"z{label[1]}",)) if geometry.layer.epoch == 0 else None
+
+    items = ("a", *(f"z{k}" for k in range(6)))
+    layer, geometry = layer_for(host, script, items=items, takeable=("a",), gen=generator(labels),
+                                max_traj_count=max_traj_count)
+    result = layer.solve()
+    assert result.status == "solved", result.reason
+    resets = events(result, "reset")
+    assert len(resets) == 1 and resets[0]["reason"] == "MaxTrajCount reached"
+    assert resets[0]["traj_count"] == max_traj_count
+    assert len(by_epoch(result, "dead_end", lambda e: [e])[0]) == max_traj_count
+
+
+def test_a_plan_that_fails_the_final_validation_is_not_reported_solved(host):
+    """Alg. 1, line 6 with a check: the task plan returned is validated before the run says solved.
+    A task planner that returns a plan whose precondition fails (a is not takeable) in a world where
+    every refinement succeeds: the real Fast Downward adapter's validator must refuse it.
+    Mutation: the validation in ``InterfaceLayer._solved`` removed."""
+    from interlayer.planning import TaskPlanResult
+
+    real = host["task_planners"].get("fast-downward").factory({})
+
+    class Wrong:
+        def plan(self, model, state, timeout):
+            return TaskPlanResult("solved", (GroundStep("take", ("a", "gp_a")),), 0.0)
+
+        def validate_plan(self, model, state, plan):
+            return real.validate_plan(model, state, plan)
+
+    layer, _ = layer_for(host, lambda *a: None, takeable=("b",), task=Wrong())
+    with pytest.raises(RuntimeError, match="the final task plan failed validation: .*take"):
+        layer.solve()
+
+
+def test_validate_replays_the_task_plan_itself(tmp_path):
+    """``interlayer validate`` replays the plan with the core's semantics, whatever the task planner's
+    library says: a plan whose first pick was dropped is refused with the core's own sentence.
+    Mutation: the ``check_plan`` replay in ``api.validation`` removed."""
+    import json
+
+    from interlayer import api
+
+    result = api.solve(str(ROOT / "examples" / "gripper2d.toml"))
+    assert result.status == "solved"
+    api.write_outputs(result, tmp_path)
+    assert api.validation(tmp_path).violations == []
+    data = json.loads((tmp_path / "result.json").read_text())
+    data["plan"] = data["plan"][1:]
+    (tmp_path / "result.json").write_text(json.dumps(data))
+    violations = api.validation(tmp_path).violations
+    assert any(v.startswith("task plan: step 0 ") and v.endswith("is not applicable") for v in violations), violations
