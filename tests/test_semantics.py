@@ -3,9 +3,11 @@ that the rest of the suite let through (named in each docstring), or by removing
 
 The geometry is the scripted test double of test_loop.py; the task planner is the real Fast Downward.
 """
+import json
 from pathlib import Path
 
 import pytest
+from test_bench import fault_plugin  # noqa: F401  (the fixture)
 from test_loop import SPEC, ScriptedGeometry, by_epoch, events, generator
 
 from interlayer.abstraction import abstract
@@ -140,8 +142,6 @@ def test_validate_replays_the_task_plan_itself(tmp_path):
     """``interlayer validate`` replays the plan with the core's semantics, whatever the task planner's
     library says: a plan whose first pick was dropped is refused with the core's own sentence.
     Mutation: the ``check_plan`` replay in ``api.validation`` removed."""
-    import json
-
     from interlayer import api
 
     result = api.solve(str(ROOT / "examples" / "gripper2d.toml"))
@@ -153,3 +153,33 @@ def test_validate_replays_the_task_plan_itself(tmp_path):
     (tmp_path / "result.json").write_text(json.dumps(data))
     violations = api.validation(tmp_path).violations
     assert any(v.startswith("task plan: step 0 ") and v.endswith("is not applicable") for v in violations), violations
+
+
+def test_a_run_that_gave_up_is_not_called_unsolvable(fault_plugin, capsys):
+    """The watchdog's stop (a pose generator that yields nothing) proves nothing: the run ends
+    'gave_up', exit 1, in --json, the explain page, the bench database and its report.
+    Mutation: ``NoProgress`` mapped to "unsolvable" in ``InterfaceLayer.solve`` again."""
+    from test_bench import suite_file
+
+    from interlayer.bench.report import write_report
+    from interlayer.bench.runner import run_suite
+    from interlayer.bench.suite import load_suite
+    from interlayer.cli import main
+
+    tmp = fault_plugin
+    example = str(ROOT / "examples" / "gripper2d.toml")
+    empty = "pose_generators.pick=test-empty:pick"
+    code = main(["plan", example, "--set", empty, "--json", "--out", str(tmp / "run")])
+    out, err = capsys.readouterr()
+    data = json.loads(out)
+    assert code == 1 and data["status"] == "gave_up", err
+    assert "yielded no candidates" in data["reason"]
+    assert main(["plan", example, "--set", empty, "-q"]) == 1
+    assert "Not solved (gave_up: gave up without a proof that no plan exists): no progress" in capsys.readouterr().err
+    assert main(["explain", str(tmp / "run"), "-o", str(tmp / "explain.html")]) == 0
+    assert '">gave_up</span>' in (tmp / "explain.html").read_text()
+    suite = load_suite(str(suite_file(tmp, "empty", [("empty", example, [empty])], seeds="0", time_limit=30)))
+    summary = run_suite(suite, tmp / "r.sqlite", jobs=1, progress=False)
+    assert summary["statuses"] == {"gave_up": 1}
+    [report] = [p for p in write_report(tmp / "r.sqlite", tmp / "report") if p.suffix == ".md"]
+    assert "1 gave_up" in report.read_text()

@@ -421,11 +421,13 @@ class _Explainer:
         self.views = 0
 
     def render(self, title) -> str:
+        from interlayer.result import MEANING
+
         r = self.run.result
         status = r.get("status", "?")
-        cls = "ok" if status == "solved" else "bad"
+        cls = "ok" if status == "solved" else "warn" if status in ("gave_up", "timeout", "interrupted") else "bad"
         out = [f"<h1>{escape(title)}</h1>",
-               f'<p><span class="badge {cls}">{escape(status)}</span> '
+               f'<p><span class="badge {cls}" title="{escape(MEANING.get(status, status))}">{escape(status)}</span> '
                f'{escape(r.get("reason") or "")} <span class="muted">{escape(str(self.run.dir))}</span></p>']
         out.append(self.summary())
         out.append(self.timeline_section())

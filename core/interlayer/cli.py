@@ -11,6 +11,7 @@ import sys
 
 from .errors import UserError
 from .faults import PluginFault
+from .result import MEANING
 
 EXIT_OK, EXIT_NOT_SOLVED, EXIT_USER_ERROR, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -86,7 +87,7 @@ def cmd_plan(args) -> int:
             for i, s in enumerate(result.plan):
                 log(f"  {i}: {s}")
         else:
-            log(f"Not solved ({result.status}): {result.reason}")
+            log(f"Not solved ({result.status}: {MEANING.get(result.status, 'not solved')}): {result.reason}")
         if result.learned_facts:
             log("Learned facts: " + ", ".join(data["learned_facts"]))
         if args.out:

@@ -179,8 +179,10 @@ class InterfaceLayer:
             self.motion.deadline = self.deadline
         try:
             status, reason, refinement = self._run()
-        except (Infeasible, NoProgress) as exc:
+        except Infeasible as exc:  # a domain's own proof that a reference has no instance
             status, reason, refinement = "unsolvable", str(exc), None
+        except NoProgress as exc:  # nothing proved: the loop stopped itself (watchdog, exhausted budget)
+            status, reason, refinement = "gave_up", str(exc), None
         except KeyboardInterrupt:
             status, reason, refinement = "interrupted", "interrupted by the user (Ctrl-C)", None
         self.stats.times["total"] = time.perf_counter() - t0

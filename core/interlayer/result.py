@@ -7,9 +7,20 @@ from typing import Any
 from . import logic
 
 
+# What a status that is not "solved" says, in a phrase for the CLI's summary and the explain page
+MEANING = {
+    "unsolvable": "proved to have no plan",
+    "gave_up": "gave up without a proof that no plan exists",
+    "timeout": "the time limit was reached",
+    "interrupted": "interrupted",
+}
+
+
 @dataclass
 class Result:
-    status: str  # "solved" | "unsolvable" | "timeout"
+    # "solved" | "unsolvable" (proved: no task plan for the initial state, or a domain's Infeasible) |
+    # "gave_up" (the loop stopped itself without a proof: the watchdog) | "timeout" | "interrupted"
+    status: str
     reason: str = ""
     plan: list = field(default_factory=list)  # GroundSteps
     plan_cost: float | None = None  # the sum of the plan's action costs (solved runs)
