@@ -4,16 +4,19 @@ that the rest of the suite let through (named in each docstring), or by removing
 The geometry is the scripted test double of test_loop.py; the task planner is the real Fast Downward.
 """
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 from test_bench import fault_plugin  # noqa: F401  (the fixture)
 from test_loop import SPEC, ScriptedGeometry, by_epoch, events, generator
 
+from interlayer import api
 from interlayer.abstraction import abstract
-from interlayer.domain import GroundStep, Problem
+from interlayer.domain import ActionSpec, DomainSpec, GroundStep, Problem, Skolem
+from interlayer.errors import DomainError
 from interlayer.loop import InterfaceLayer, LoopSettings
-from interlayer.refine import Failure
+from interlayer.refine import Candidate, Failure
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -142,8 +145,6 @@ def test_validate_replays_the_task_plan_itself(tmp_path):
     """``interlayer validate`` replays the plan with the core's semantics, whatever the task planner's
     library says: a plan whose first pick was dropped is refused with the core's own sentence.
     Mutation: the ``check_plan`` replay in ``api.validation`` removed."""
-    from interlayer import api
-
     result = api.solve(str(ROOT / "examples" / "gripper2d.toml"))
     assert result.status == "solved"
     api.write_outputs(result, tmp_path)
@@ -183,3 +184,62 @@ def test_a_run_that_gave_up_is_not_called_unsolvable(fault_plugin, capsys):
     assert summary["statuses"] == {"gave_up": 1}
     [report] = [p for p in write_report(tmp / "r.sqlite", tmp / "report") if p.suffix == ".md"]
     assert "1 gave_up" in report.read_text()
+
+
+REACH = DomainSpec(
+    name="scripted-reach",
+    types={"item": None},
+    continuous_types=("pose",),
+    predicates={"Done": ("item",), "Near": ("item",), "IsGP": ("pose", "item"), "Reachable": ("pose",)},
+    skolems=(Skolem("gp", ("item",), "pose", "IsGP"),),
+    geometric=("Reachable",),  # occurs only positively: true by default (Prop. 1)
+    actions=(
+        ActionSpec("take", (("?x", "item"), ("?p", "pose")), "(and (not (Done ?x)) (IsGP ?p ?x) (Reachable ?p))",
+                   "(Done ?x)", learn={"unreachable": ("(not (Reachable ?p))",)}, pose_generator="scripted"),
+        # the long way round (two steps), without the reach
+        ActionSpec("walk", (("?x", "item"),), "(not (Near ?x))", "(Near ?x)", pose_generator="scripted"),
+        ActionSpec("fetch", (("?x", "item"), ("?p", "pose")), "(and (not (Done ?x)) (Near ?x) (IsGP ?p ?x))",
+                   "(Done ?x)", pose_generator="scripted"),
+    ),
+)
+
+
+def test_a_default_true_fact_learned_false_is_deleted_from_the_state(host, tmp_path):
+    """A learn template may be negated: take(a) fails as unreachable, the translator returns
+    (not (Reachable gp_a)), the loop deletes it from the state at the failing step, and the task
+    planner turns to the longer walk and fetch. The trace, result and explain page show the deletion.
+    Mutations: the deletion not applied (``state = states[f] | true``); a negated template ignored."""
+    from interlayer import logic
+    from interlayer.cli import main
+
+    def script(item, label, world, n):
+        return Failure("unreachable") if label.startswith("take") else None
+
+    def gen(problem, step, world, rng):
+        yield Candidate((step.action,), {}, f"{step.action}-{rng.integers(1000)}")
+
+    problem = Problem(REACH, {"a": "item"}, frozenset(), "(Done a)", ScriptedGeometry(script), {})
+    task = host["task_planners"].get("fast-downward").factory({})
+    translators = [("templates", host["failure_translators"].get("templates").factory)]
+    layer = InterfaceLayer(abstract(problem), task, None, {"take": gen, "walk": gen, "fetch": gen}, translators,
+                           LoopSettings(time_limit=10.0))
+    result = layer.solve()
+    assert result.status == "solved", result.reason
+    assert [str(s) for s in result.plan] == ["walk(a)", "fetch(a, gp_a)"]
+    assert events(result, "task_plan")[0]["plan"] == [{"action": "take", "args": ["a", "gp_a"]}]
+    assert result.learned_facts == [logic.negated(("Reachable", "gp_a"))]
+    assert result.to_json()["learned_facts"] == ["(not (Reachable gp_a))"]
+    assert ("Reachable", "gp_a") in layer.model.init and ("Reachable", "gp_a") not in layer.with_learned(layer.model.init)
+    [failure] = events(result, "failure")
+    assert failure["facts"] == ["(not (Reachable gp_a))"]
+    out = api.write_outputs(result, tmp_path / "run")
+    assert main(["explain", str(out), "-o", str(tmp_path / "explain.html")]) == 0
+    assert "(not (Reachable gp_a))" in (tmp_path / "explain.html").read_text()
+
+
+def test_a_learn_template_must_be_one_literal():
+    bad = ActionSpec("take", (("?x", "item"), ("?p", "pose")), "(and (IsGP ?p ?x) (Reachable ?p))", "(Done ?x)",
+                     learn={"unreachable": ("(and (not (Reachable ?p)) (Done ?x))",)})
+    spec = replace(REACH, actions=(bad,))
+    with pytest.raises(DomainError, match="is not one fact or its negation"):
+        abstract(Problem(spec, {"a": "item"}, frozenset(), "(Done a)", ScriptedGeometry(None), {}))

@@ -639,7 +639,7 @@ class _Explainer:
         if objs:
             text.append("<div>obstructed by: " + ", ".join(f'<b style="color:#c9302c">{escape(o)}</b>' for o in objs) + "</div>")
         text.append("<div>learned: " + (", ".join(f'<span class="fact">{escape(x)}</span>' for x in facts) or "nothing")
-                    + "</div><div class=muted>The task planner now plans from the state before this step plus these facts.</div>")
+                    + "</div><div class=muted>The task planner now plans from the state before this step with these facts (a (not ...) fact is deleted).</div>")
         view = ""
         if self.views < MAX_FAILURE_VIEWS and self.run.problem is not None:
             scene = failure_scene(self.run.problem, e)

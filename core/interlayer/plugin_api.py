@@ -22,7 +22,8 @@ Motion planners
 Task planners
     subclass ``TaskPlanner`` and implement ``_plan(model, state, timeout)`` over a ``TaskModel``.
 Failure translators
-    ``fn(failure, step, model) -> set of atoms`` (atoms are tuples ``("Obstructs", "b2", "gp_b1")``).
+    ``fn(failure, step, model) -> set of atoms`` (atoms are tuples ``("Obstructs", "b2", "gp_b1")``;
+    ``negated(atom)`` learns an atom false: the loop deletes it).
 Errors
     raise ``UserError`` with one plain sentence for bad input (the CLI exits 2); any other exception
     from plugin code is reported as that plugin's fault (``PluginFault``).
@@ -35,6 +36,7 @@ from .builtin import translate_by_templates
 from .domain import ActionSpec, DomainSpec, GroundStep, Problem, Skolem
 from .errors import UserError
 from .faults import PluginFault
+from .logic import negated
 from .motion import ConfigSpace, InterpolatingPlanner, MotionPlan, MotionPlanner, MotionQuery, points_valid, segment_valid
 from .planning import TaskPlanner, TaskPlanResult
 from .plugins import Registry
@@ -60,5 +62,5 @@ __all__ = [
     "DomainSpec", "ActionSpec", "Skolem", "Problem", "GroundStep", "TaskModel",
     "Geometry", "Candidate", "StepOutcome", "Failure", "Infeasible", "EpochState", "Drawing",
     "ConfigSpace", "MotionQuery", "MotionPlan", "MotionPlanner", "InterpolatingPlanner", "segment_valid", "points_valid",
-    "TaskPlanner", "TaskPlanResult", "translate_by_templates",
+    "TaskPlanner", "TaskPlanResult", "translate_by_templates", "negated",
 ]
