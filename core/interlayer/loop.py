@@ -264,8 +264,7 @@ class InterfaceLayer:
                     self.trace.emit("replan", fail_step=f, prefix=plan_json(old[:f]), new_plan=plan_json(new_plan),
                                     plan=plan_json(self.plan))
                     break
-                self.trace.emit("dead_end", step=f, facts=shown,
-                                status=self.last_task_status)
+                self.trace.emit("dead_end", step=f, facts=shown, status=self.last_task_status)
                 if traj_count >= self.settings.max_traj_count or self._out_of_time():
                     break
             if new_plan is None and not self._out_of_time():  # lines 14-17

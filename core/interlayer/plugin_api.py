@@ -40,7 +40,7 @@ from .logic import negated
 from .motion import ConfigSpace, InterpolatingPlanner, MotionPlan, MotionPlanner, MotionQuery, points_valid, segment_valid
 from .planning import TaskPlanner, TaskPlanResult
 from .plugins import Registry
-from .refine import Candidate, EpochState, Failure, Geometry, Infeasible, StepOutcome
+from .refine import ROBOT_MOVED, Candidate, EpochState, Failure, Geometry, Infeasible, StepOutcome
 
 
 class Drawing(Protocol):
@@ -60,7 +60,7 @@ class Drawing(Protocol):
 __all__ = [
     "hookimpl", "Registry", "UserError", "PluginFault",
     "DomainSpec", "ActionSpec", "Skolem", "Problem", "GroundStep", "TaskModel",
-    "Geometry", "Candidate", "StepOutcome", "Failure", "Infeasible", "EpochState", "Drawing",
+    "Geometry", "Candidate", "StepOutcome", "Failure", "Infeasible", "EpochState", "ROBOT_MOVED", "Drawing",
     "ConfigSpace", "MotionQuery", "MotionPlan", "MotionPlanner", "InterpolatingPlanner", "segment_valid", "points_valid",
     "TaskPlanner", "TaskPlanResult", "translate_by_templates", "negated",
 ]
