@@ -213,8 +213,32 @@ def cmd_explain(args) -> int:
     return EXIT_OK
 
 
+def distribution_version() -> str:
+    """The installed distribution's version; the package's own in a source checkout that is not installed."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("interlayer")
+    except metadata.PackageNotFoundError:
+        from . import __version__
+
+        return __version__
+
+
+class _Version(argparse.Action):
+    """--version, looked up only when asked for (metadata lookups cost start-up time)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None):
+        super().__init__(option_strings, dest, nargs=0, default=default, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"interlayer {distribution_version()}")
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="interlayer", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action=_Version, help="print the installed version and exit")
     sub = parser.add_subparsers(dest="command", required=True)
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
