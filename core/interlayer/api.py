@@ -6,7 +6,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import config as cfg
+from . import config as cfg, shipped
 from .abstraction import TaskModel, abstract
 from .errors import UserError
 from .faults import ComponentFailed, Guarded, PluginFault, blame, blamed
@@ -23,12 +23,16 @@ def resolve_config(source, overrides=None) -> dict:
         raw = source
     else:
         path = Path(source)
+        if not path.exists():  # a shipped example by name ("gripper2d"), also from an installed wheel
+            path = shipped.find("examples", str(source)) or path
         if path.is_dir():
             if not (path / "config.toml").exists():
                 raise UserError(f"The folder {path} has no config.toml; give a config file or a folder written by 'interlayer plan --out'.")
             raw = cfg.load_toml(path / "config.toml")
         elif not path.exists():
-            raise UserError(f"No such file or folder: {path}.")
+            hint = (f"; the shipped examples are {', '.join(shipped.names('examples')) or 'not installed'}"
+                    if str(path.parent) in (".", "examples") else "")
+            raise UserError(f"No such file or folder: {path}{hint}.")
         elif path.suffix == ".toml":
             raw = cfg.load_toml(path)
             file = raw.get("problem", {}).get("file")
