@@ -292,10 +292,7 @@ def validation(out_dir, host: PluginHost | None = None) -> Validation:
     from .planning import check_plan
 
     out = Path(out_dir)
-    for name in ("result.json", "config.toml"):
-        if not (out / name).exists():
-            raise UserError(f"{out} has no {name}; give a folder written by 'interlayer plan --out'.")
-    result = _read_json(out / "result.json")
+    result = read_run(out)
     if result.get("status") != "solved":
         return Validation([f"the run did not solve the problem (status {result.get('status')}): nothing to validate"], [])
     config = resolve_config(out)
@@ -326,6 +323,29 @@ def validation(out_dir, host: PluginHost | None = None) -> Validation:
     else:
         checked.append(f"trajectory NOT re-checked: the domain '{problem.domain.name}' has no trajectory validator")
     return Validation(violations, checked)
+
+
+def read_run(out_dir) -> dict:
+    """The result.json of a folder written by 'interlayer plan --out' (checked to be one)."""
+    out = Path(out_dir)
+    if not out.is_dir():
+        raise UserError(f"No such folder: {out}; give a folder written by 'interlayer plan --out'.")
+    for name in ("result.json", "config.toml"):
+        if not (out / name).exists():
+            raise UserError(f"{out} has no {name}; give a folder written by 'interlayer plan --out'.")
+    return _read_json(out / "result.json")
+
+
+def read_trajectory(out_dir) -> dict:
+    """The trajectory.json of a solved run's folder; a UserError for any other folder."""
+    out = Path(out_dir)
+    result = read_run(out)
+    if result.get("status") != "solved":
+        raise UserError(f"The run in {out} did not solve its problem (status {result.get('status')}), so it has no "
+                        f"trajectory; give the folder of a solved run.")
+    if not (out / "trajectory.json").exists():
+        raise UserError(f"{out} has no trajectory.json; write the run again with 'interlayer plan --out'.")
+    return _read_json(out / "trajectory.json")
 
 
 def _read_json(path: Path) -> dict:
