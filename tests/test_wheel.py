@@ -68,3 +68,20 @@ def _version():
     from interlayer.config import load_toml
 
     return load_toml(ROOT / "pyproject.toml")["project"]["version"]
+
+
+def test_an_installed_copy_records_no_commit_of_a_repository_around_it(tmp_path):
+    """A package installed inside some other git repository (a venv in a project) is no checkout of ours."""
+    import shutil
+
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-C", str(tmp_path)]
+    _run([*git[:5], "init", "-q", str(tmp_path)])
+    _run([*git, "commit", "-q", "--allow-empty", "-m", "theirs"])
+    site = tmp_path / "venv" / "lib" / "python3" / "site-packages"
+    shutil.copytree(ROOT / "core" / "interlayer", site / "interlayer", ignore=shutil.ignore_patterns("__pycache__"))
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env["PYTHONPATH"] = str(site)
+    code = "from interlayer.bench.worker import _git_commit; print(repr(_git_commit()))"
+    assert _run([sys.executable, "-c", code], env=env, cwd=tmp_path).stdout.strip() == "''"
+    if (ROOT / ".git").exists():  # from the checkout: its own commit
+        assert _run([sys.executable, "-c", code], cwd=ROOT).stdout.strip() != "''"
