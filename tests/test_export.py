@@ -21,8 +21,11 @@ def cubby_run(tmp_path_factory):
 
 def _segments(run):
     """trajectory.json's JointTrajectory-shaped segments, in order."""
-    steps = json.loads((run / "trajectory.json").read_text())["steps"]
-    return [seg for step in steps for seg in step["segments"] if seg.get("joint_names")]
+    return _segments_of(json.loads((run / "trajectory.json").read_text()))
+
+
+def _segments_of(trajectory):
+    return [seg for step in trajectory["steps"] for seg in step["segments"] if seg.get("joint_names")]
 
 
 def _ns(seconds):
@@ -87,6 +90,22 @@ def test_export_errors_are_one_sentence(cubby_run, tmp_path, capsys):
         err = capsys.readouterr().err
         assert says in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "x.csv").exists()
+
+
+@pytest.mark.parametrize("damage", [lambda p: p.pop("time_from_start"), lambda p: p["positions"].pop(),
+                                    lambda p: p.update(positions=None), lambda p: p.update(velocities="fast")],
+                         ids=["no time", "a position short", "no positions", "velocities not numbers"])
+def test_a_damaged_trajectory_is_named(cubby_run, tmp_path, capsys, damage):
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(cubby_run, run)
+    trajectory = json.loads((run / "trajectory.json").read_text())
+    damage(_segments_of(trajectory)[-1]["points"][-1])
+    (run / "trajectory.json").write_text(json.dumps(trajectory))
+    assert main(["export", str(run), "--format", "csv", "-o", str(tmp_path / "x.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "trajectory.json of" in err and "is damaged" in err and len(err.strip().splitlines()) == 1
 
 
 def test_gripper2d_paths_are_not_joint_trajectories(gripper_example, tmp_path, capsys):

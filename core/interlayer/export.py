@@ -18,16 +18,30 @@ MSGTYPE = "trajectory_msgs/msg/JointTrajectory"
 
 
 def joint_segments(trajectory: dict) -> list[dict]:
-    """Every JointTrajectory-shaped segment, in order, with its step, action and start on the plan's clock."""
+    """Every JointTrajectory-shaped segment, in order, with its step, action and start on the plan's clock;
+    points as floats (positions, velocities and accelerations lists, time_from_start)."""
     out, start = [], 0.0
     for i, step in enumerate(trajectory.get("steps", [])):
         for seg in step.get("segments", []):
             if not seg.get("joint_names") or not seg.get("points"):
                 continue
-            out.append({"step": i, "action": step.get("action", ""), "start": start,
-                        "joint_names": list(seg["joint_names"]), "points": seg["points"]})
-            start += float(seg["points"][-1]["time_from_start"])
+            names = [str(n) for n in seg["joint_names"]]
+            points = [{"time_from_start": float(p["time_from_start"]),
+                       **{key: _floats(p.get(key), len(names), key) for key in ("positions", "velocities", "accelerations")}}
+                      for p in seg["points"]]
+            if not all(p["positions"] for p in points):
+                raise ValueError("a point has no positions")
+            out.append({"step": i, "action": step.get("action", ""), "start": start, "joint_names": names, "points": points})
+            start += points[-1]["time_from_start"]
     return out
+
+
+def _floats(values, n: int, key: str) -> list[float]:
+    """One number per joint, or [] when the point leaves ``key`` out."""
+    values = [float(v) for v in values or ()]
+    if values and len(values) != n:
+        raise ValueError(f"a point has {len(values)} {key} for {n} joint names")
+    return values
 
 
 def export(out_dir, fmt: str, path) -> dict:
@@ -37,7 +51,11 @@ def export(out_dir, fmt: str, path) -> dict:
     if fmt not in FORMATS:
         raise UserError(f"Unknown export format '{fmt}'; choose one of: {', '.join(FORMATS)}.")
     trajectory = read_trajectory(out_dir)
-    segments = joint_segments(trajectory)
+    try:
+        segments = joint_segments(trajectory)
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise UserError(f"The trajectory.json of {out_dir} is damaged ({type(exc).__name__}: {exc}); "
+                        f"write the run again with 'interlayer plan --out'.") from None
     if not segments:
         raise UserError(f"The trajectory of {out_dir} has no joint trajectories (segments with joint_names and timed "
                         f"points): the domain '{trajectory.get('domain', '?')}' writes none, so there is nothing to export.")
@@ -68,7 +86,7 @@ def write_rosbag2(segments: list[dict], path: Path) -> None:
                                types["builtin_interfaces/msg/Duration"])
 
     def values(p, key):
-        return np.asarray(p.get(key) or [], dtype=np.float64)
+        return np.asarray(p[key], dtype=np.float64)
 
     try:
         with Writer(path, version=8) as writer:
@@ -96,8 +114,8 @@ def write_csv(segments: list[dict], path: Path) -> None:
             for k, seg in enumerate(segments):
                 for p in seg["points"]:
                     row = dict(zip(seg["joint_names"], p["positions"]))
-                    t = float(p["time_from_start"])
+                    t = p["time_from_start"]
                     out.writerow([k, seg["step"], seg["action"], repr(t), repr(seg["start"] + t),
-                                  *(repr(float(row[j])) if j in row else "" for j in joints)])
+                                  *(repr(row[j]) if j in row else "" for j in joints)])
     except OSError as exc:
         raise UserError(f"Cannot write {path}: {exc.strerror or exc}.") from None
