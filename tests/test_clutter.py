@@ -1,4 +1,4 @@
-"""Clutter-N (BENCHMARKS.md section 2); the pybullet-planning JSON loader is tested in test_pbjson.py."""
+"""Clutter-N (docs/benchmarks.md); the pybullet-planning JSON loader is tested in test_pbjson.py."""
 from pathlib import Path
 
 import pytest
