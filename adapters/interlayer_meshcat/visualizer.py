@@ -439,11 +439,13 @@ class _Explainer:
         self.views = 0
 
     def render(self, title) -> str:
+        from interlayer.result import MEANING
+
         r = self.run.result
         status = r.get("status", "?")
-        cls = "ok" if status == "solved" else "bad"
+        cls = "ok" if status == "solved" else "warn" if status in ("gave_up", "timeout", "interrupted") else "bad"
         out = [f"<h1>{escape(title)}</h1>",
-               f'<p><span class="badge {cls}">{escape(status)}</span> '
+               f'<p><span class="badge {cls}" title="{escape(MEANING.get(status, status))}">{escape(status)}</span> '
                f'{escape(r.get("reason") or "")} <span class="muted">{escape(str(self.run.dir))}</span></p>']
         out.append(self.summary())
         out.append(self.timeline_section())
@@ -655,7 +657,7 @@ class _Explainer:
         if objs:
             text.append("<div>obstructed by: " + ", ".join(f'<b style="color:#c9302c">{escape(o)}</b>' for o in objs) + "</div>")
         text.append("<div>learned: " + (", ".join(f'<span class="fact">{escape(x)}</span>' for x in facts) or "nothing")
-                    + "</div><div class=muted>The task planner now plans from the state before this step plus these facts.</div>")
+                    + "</div><div class=muted>The task planner now plans from the state before this step with these facts (a (not ...) fact is deleted).</div>")
         view = ""
         if self.views < MAX_FAILURE_VIEWS and self.run.problem is not None:
             scene = failure_scene(self.run.problem, e)

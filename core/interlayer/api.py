@@ -6,7 +6,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import config as cfg
+from . import config as cfg, shipped
 from .abstraction import TaskModel, abstract
 from .errors import UserError
 from .faults import ComponentFailed, Guarded, PluginFault, blame, blamed
@@ -23,12 +23,16 @@ def resolve_config(source, overrides=None) -> dict:
         raw = source
     else:
         path = Path(source)
+        if not path.exists():  # a shipped example by name ("gripper2d"), also from an installed wheel
+            path = shipped.find("examples", str(source)) or path
         if path.is_dir():
             if not (path / "config.toml").exists():
                 raise UserError(f"The folder {path} has no config.toml; give a config file or a folder written by 'interlayer plan --out'.")
             raw = cfg.load_toml(path / "config.toml")
         elif not path.exists():
-            raise UserError(f"No such file or folder: {path}.")
+            hint = (f"; the shipped examples are {', '.join(shipped.names('examples')) or 'not installed'}"
+                    if str(path.parent) in (".", "examples") else "")
+            raise UserError(f"No such file or folder: {path}{hint}.")
         elif path.suffix == ".toml":
             raw = cfg.load_toml(path)
             file = raw.get("problem", {}).get("file")
@@ -288,10 +292,7 @@ def validation(out_dir, host: PluginHost | None = None) -> Validation:
     from .planning import check_plan
 
     out = Path(out_dir)
-    for name in ("result.json", "config.toml"):
-        if not (out / name).exists():
-            raise UserError(f"{out} has no {name}; give a folder written by 'interlayer plan --out'.")
-    result = _read_json(out / "result.json")
+    result = read_run(out)
     if result.get("status") != "solved":
         return Validation([f"the run did not solve the problem (status {result.get('status')}): nothing to validate"], [])
     config = resolve_config(out)
@@ -322,6 +323,29 @@ def validation(out_dir, host: PluginHost | None = None) -> Validation:
     else:
         checked.append(f"trajectory NOT re-checked: the domain '{problem.domain.name}' has no trajectory validator")
     return Validation(violations, checked)
+
+
+def read_run(out_dir) -> dict:
+    """The result.json of a folder written by 'interlayer plan --out' (checked to be one)."""
+    out = Path(out_dir)
+    if not out.is_dir():
+        raise UserError(f"No such folder: {out}; give a folder written by 'interlayer plan --out'.")
+    for name in ("result.json", "config.toml"):
+        if not (out / name).exists():
+            raise UserError(f"{out} has no {name}; give a folder written by 'interlayer plan --out'.")
+    return _read_json(out / "result.json")
+
+
+def read_trajectory(out_dir) -> dict:
+    """The trajectory.json of a solved run's folder; a UserError for any other folder."""
+    out = Path(out_dir)
+    result = read_run(out)
+    if result.get("status") != "solved":
+        raise UserError(f"The run in {out} did not solve its problem (status {result.get('status')}), so it has no "
+                        f"trajectory; give the folder of a solved run.")
+    if not (out / "trajectory.json").exists():
+        raise UserError(f"{out} has no trajectory.json; write the run again with 'interlayer plan --out'.")
+    return _read_json(out / "trajectory.json")
 
 
 def _read_json(path: Path) -> dict:

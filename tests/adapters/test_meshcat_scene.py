@@ -333,8 +333,9 @@ def test_html_page_helpers():
 # ------------------------------------------------------------------ rendering
 def test_boxes_page_renders_and_animates(tmp_path, need_chromium):
     p = boxes_scene(autoplay=True).write_html(tmp_path / "boxes.html")
-    early = browser.screenshot(p, tmp_path / "early.png", budget_ms=300)
-    late = browser.screenshot(p, tmp_path / "late.png", budget_ms=1500)   # 3/4 of the way
+    # the frames at 0.3 s and 1.5 s (3/4 of the way), set by the test: no race with the page's clock
+    early = browser.screenshot(browser.paused_at(p, 0.3, tmp_path / "early.html"), tmp_path / "early.png")
+    late = browser.screenshot(browser.paused_at(p, 1.5, tmp_path / "late.html"), tmp_path / "late.png")
     for png in (early, late):
         assert not browser.is_blank(png)
         img = browser.read_png(png)

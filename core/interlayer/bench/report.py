@@ -12,7 +12,7 @@ from pathlib import Path
 from . import db
 
 BEGIN, END = "<!-- BENCH-REPORT BEGIN -->", "<!-- BENCH-REPORT END -->"
-FAILED = ("unsolvable", "timeout", "error", "invalid", "killed")
+FAILED = ("unsolvable", "gave_up", "timeout", "error", "invalid", "killed")
 
 
 def _fmt(x, digits=1) -> str:
