@@ -28,7 +28,8 @@ PBJSON = ROOT.parent / "shared" / "benchmarks" / "pybullet-planning-json"
 
 # name: (output under docs/images, what is run, page, window size, when the shot is taken)
 # "what is run" is a config or problem file and its --set overrides; {pbjson} is the --pbjson folder.
-# "when": (step, fraction) = that far into that plan step's motion, or milliseconds after loading.
+# "when": (step, fraction) = the animation paused that far into that plan step's motion, or the
+# milliseconds (of the browser's virtual time) after loading when the page is photographed.
 IMAGES = {
     "gripper2d-plan": ("gripper2d-plan.png", ["examples/gripper2d.toml"], "viz", (1000, 700), (3, 0.5)),
     "gripper2d-explain": ("gripper2d-explain.png", ["examples/gripper2d.toml"], "explain", (1000, 1400), 6000),
@@ -55,11 +56,11 @@ def _interlayer(*args, cwd=ROOT) -> None:
         raise SystemExit(f"make_images: 'interlayer {' '.join(map(str, args))}' exited {proc.returncode}")
 
 
-def _when(page: Path, when) -> int:
-    """Milliseconds of animation before the shot: ``when`` = (step, fraction) read off the page's
-    step start times (the caption's ``starts``), or milliseconds as given."""
+def _instant(page: Path, when):
+    """Seconds into the animation to pause it at for ``when`` = (step, fraction), read off the
+    page's step start times (the caption's ``starts``); None for a page photographed as loaded."""
     if isinstance(when, int):
-        return when
+        return None
     step, fraction = when
     m = re.search(r"var starts = (\[.*?\]), el", page.read_text(encoding="utf-8"))
     starts = json.loads(m.group(1)) if m else []
@@ -67,16 +68,19 @@ def _when(page: Path, when) -> int:
     if step not in times:
         raise SystemExit(f"make_images: {page.name} has no step {step}; the plan has {len(starts) - 1} step(s).")
     end = next((t for s, t in starts if t > times[step]), times[step])
-    return int(1000 * (times[step] + fraction * (end - times[step]))) + 500  # + loading the page
+    return times[step] + fraction * (end - times[step])
 
 
-def _shoot(page: Path, png: Path, size, budget_ms) -> None:
+def _shoot(page: Path, png: Path, size, when) -> None:
     sys.path.insert(0, str(ROOT / "tests"))
     import browser  # tests/browser.py: how the tests start headless Chromium
 
     if browser.chromium_path() is None:
         raise SystemExit(f"make_images: {browser.CHROMIUM_MISSING}")
-    browser.screenshot(page, png, size=size, budget_ms=budget_ms)
+    seconds = _instant(page, when)
+    if seconds is not None:  # the animation paused at that instant, however long loading takes
+        page = browser.paused_at(page, seconds, page.with_name(page.stem + "-paused.html"))
+    browser.screenshot(page, png, size=size, budget_ms=when if seconds is None else 4000)
     _shrink(png)
 
 
@@ -123,7 +127,7 @@ def main(argv=None) -> int:
                 _interlayer("plan", *src, "--out", runs[key], "-q")
             html = tmp / f"{n}.html"
             _interlayer(page, runs[key], "-o", html)
-            _shoot(html, images / out, size, _when(html, budget))
+            _shoot(html, images / out, size, budget)
             print(f"wrote docs/images/{out} ({(images / out).stat().st_size // 1024} KB)", file=sys.stderr)
         if any(IMAGES[n][2] == "bench" for n in names):
             db = args.bench_db
