@@ -412,8 +412,9 @@ def _solve_locked(engine_name, params, problem, timeout, warm):
 def _child(conn, engine_name, params, problem, timeout):
     import warnings
 
-    global _UP_LOCK
+    global _UP_LOCK, _setup_lock
     _UP_LOCK = threading.Lock()  # the parent's, copied while its forking thread held it
+    _setup_lock = threading.Lock()  # copied in whatever state another of the parent's threads left it
     warnings.filterwarnings("ignore", message=".*does not support timeout")  # we enforce it here
     try:
         _quiet_environment()
