@@ -276,6 +276,28 @@ def test_a_hooks_answer_of_the_wrong_type_is_its_plugins_fault(plugin_dir, capsy
     assert errors[0].startswith(f"error: the plugin 'il_wrong' failed: {sentence}"), errors[0]
 
 
+def test_a_domain_or_loader_returning_no_problem_is_its_plugins_fault(plugin_dir, capsys, tmp_path):
+    plugin_dir("il_noproblem", """
+        from interlayer import hookimpl
+
+        @hookimpl
+        def interlayer_register_domains(registry):
+            registry.add("noproblem", lambda params, seed: "a problem", "returns a string")
+
+        @hookimpl
+        def interlayer_load_problem(path, params, seed):
+            return {"objects": []} if path.suffix == ".noproblem" else None
+    """)
+    (tmp_path / "noproblem.toml").write_text('[problem]\ndomain = "noproblem"\n')
+    code, out, err = run_cli(capsys, "plan", str(tmp_path / "noproblem.toml"), "-q")
+    assert code == 1 and "error: the plugin 'il_noproblem' failed: its domain 'noproblem' failed: it returned str " \
+        "'a problem', not a Problem" in err
+    (tmp_path / "scene.noproblem").write_text("")
+    code, out, err = run_cli(capsys, "plan", str(tmp_path / "scene.noproblem"), "-q")
+    assert code == 1 and "error: the plugin 'il_noproblem' failed: its problem loader (interlayer_load_problem) " \
+        "failed: it returned dict {'objects': []}, not a Problem" in err
+
+
 def test_a_geometry_returning_no_step_outcome_is_the_domains_fault(monkeypatch, capsys):
     from interlayer_gripper2d.world import Gripper2DGeometry
 

@@ -72,7 +72,7 @@ def build_problem(host: PluginHost, config: dict):
         comp = host["domains"].get(name)
         cfg.check(config, comp.params)
         with blame(comp.plugin, comp.label):
-            problem = comp.factory({**comp.params, **params}, seed)
+            problem = contracts.problem(comp.factory({**comp.params, **params}, seed))
     if comp is not None:
         if problem.drawing is None:
             problem.drawing = comp.drawing

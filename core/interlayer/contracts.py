@@ -22,6 +22,15 @@ def shown(value) -> str:
     return f"{type(value).__name__} {text if len(text) <= 60 else text[:57] + '...'}"
 
 
+def problem(value):
+    """A domain's factory or a problem loader's answer: a Problem."""
+    from .domain import Problem
+
+    if not isinstance(value, Problem):
+        raise ComponentFailed(f"it returned {shown(value)}, not a Problem")
+    return value
+
+
 def candidate(item):
     """A pose generator's item: a Candidate whose waypoints are configurations (numbers, or
     sequences of them, nested: a waypoint may be a path), ``values`` a mapping, ``label`` a string."""
