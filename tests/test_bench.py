@@ -179,7 +179,7 @@ def test_two_coordinators_on_one_database_share_the_runs_and_make_none_twice(tmp
 
 
 def test_a_running_coordinators_claim_is_left_to_it_and_a_gone_ones_retaken(tmp_path, capsys):
-    path = suite_file(tmp_path, "claimed", [("Gripper-2D", GRIPPER, [])], seeds="0-1", time_limit=30)
+    path = suite_file(tmp_path, "claimed", [("Gripper-2D", GRIPPER, [])], seeds="0-2", time_limit=30)
     db_path = tmp_path / "r.sqlite"
     gone = subprocess.Popen([sys.executable, "-c", "pass"])
     gone.wait()
@@ -189,15 +189,19 @@ def test_a_running_coordinators_claim_is_left_to_it_and_a_gone_ones_retaken(tmp_
     con = db.connect(db_path)
     assert db.claim(con, ("claimed", "Gripper-2D", "default", 0, 30.0), (host, alive)) is None
     assert db.claim(con, ("claimed", "Gripper-2D", "default", 1, 30.0), (host, gone.pid)) is None
+    # and seed 2 by a coordinator whose pid the running process took over since (it started after the claim)
+    assert db.claim(con, ("claimed", "Gripper-2D", "default", 2, 30.0), (host, alive)) is None
+    with con:
+        con.execute("UPDATE claims SET claimed = '2001-01-01T00:00:00+00:00' WHERE seed = 2")
     con.close()
     try:
         summary = run_suite(load_suite(str(path)), db_path, jobs=1, progress=False)
     finally:
         running.communicate(b"")
-    assert summary["ran"] == 1 and summary["claimed_elsewhere"] == 1
-    assert [r["seed"] for r in runs(db_path)] == [1]
+    assert summary["ran"] == 2 and summary["claimed_elsewhere"] == 1
+    assert [r["seed"] for r in runs(db_path)] == [1, 2]
     assert f"1 run(s) left to the coordinator(s) that claimed them first (pid {alive} on {host})" in capsys.readouterr().err
-    with sqlite3.connect(db_path) as con:  # seed 0's claim is still its coordinator's; seed 1's ended with its run
+    with sqlite3.connect(db_path) as con:  # seed 0's claim is still its coordinator's; the others ended with their runs
         assert con.execute("SELECT seed, pid FROM claims").fetchall() == [(0, alive)]
 
 

@@ -94,9 +94,9 @@ def claim(con, key: tuple, claimer: tuple):
         if con.execute(f"SELECT 1 FROM runs WHERE {_WHERE_KEY}", key).fetchone():
             holder = "finished"
         else:
-            row = con.execute(f"SELECT host, pid FROM claims WHERE {_WHERE_KEY}", key).fetchone()
+            row = con.execute(f"SELECT host, pid, claimed FROM claims WHERE {_WHERE_KEY}", key).fetchone()
             holder = (row[0], row[1]) if row is not None else None
-            if holder is not None and (holder == tuple(claimer) or not _running(*holder)):
+            if holder is not None and (holder == tuple(claimer) or not _running(*holder, row[2])):
                 holder = None  # ours already, or its coordinator is gone: retaken
             if holder is None:
                 now = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
@@ -114,8 +114,10 @@ def release(con, claimer: tuple) -> None:
         con.execute("DELETE FROM claims WHERE host = ? AND pid = ?", tuple(claimer))
 
 
-def _running(host: str, pid: int) -> bool:
-    """Whether the coordinator (host, pid) may still run: a process of another host cannot be asked."""
+def _running(host: str, pid: int, claimed: str) -> bool:
+    """Whether the coordinator (host, pid) that claimed a run at ``claimed`` may still run: not if no
+    process has its pid, or if the one that has it started after the claim (the pid was reused). A
+    process of another host cannot be asked."""
     if host != socket.gethostname():
         return True
     try:
@@ -123,8 +125,24 @@ def _running(host: str, pid: int) -> bool:
     except ProcessLookupError:
         return False
     except PermissionError:  # alive, someone else's
+        pass
+    started = _start_time(pid)
+    try:
+        claim_time = datetime.datetime.fromisoformat(claimed).timestamp()
+    except (TypeError, ValueError):
         return True
-    return True
+    return started is None or started <= claim_time + 2  # claim times are whole seconds, boot time too
+
+
+def _start_time(pid: int) -> float | None:
+    """When process ``pid`` started, in seconds since the epoch (Linux's /proc); None if unknown."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        boot = next(int(line.split()[1]) for line in Path("/proc/stat").read_text().splitlines()
+                    if line.startswith("btime "))
+        return boot + int(fields[19]) / os.sysconf("SC_CLK_TCK")  # field 22, starttime, in clock ticks
+    except (OSError, ValueError, IndexError, StopIteration):
+        return None
 
 
 def load(con) -> tuple[list[dict], list[dict]]:
