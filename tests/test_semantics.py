@@ -208,7 +208,8 @@ def test_a_default_true_fact_learned_false_is_deleted_from_the_state(host, tmp_p
     """A learn template may be negated: take(a) fails as unreachable, the translator returns
     (not (Reachable gp_a)), the loop deletes it from the state at the failing step, and the task
     planner turns to the longer walk and fetch. The trace, result and explain page show the deletion.
-    Mutations: the deletion not applied (``state = states[f] | true``); a negated template ignored."""
+    Mutations: the deletion not applied (``state = states[f] | true``); a negated template ignored; the
+    translators' contract refusing negated atoms."""
     from interlayer import logic
     from interlayer.cli import main
 
@@ -220,7 +221,7 @@ def test_a_default_true_fact_learned_false_is_deleted_from_the_state(host, tmp_p
 
     problem = Problem(REACH, {"a": "item"}, frozenset(), "(Done a)", ScriptedGeometry(script), {})
     task = host["task_planners"].get("fast-downward").factory({})
-    translators = [("templates", host["failure_translators"].get("templates").factory)]
+    translators = api.translators_for(host, {"planner": {"translators": ["templates"]}})  # with the hook's contract
     layer = InterfaceLayer(abstract(problem), task, None, {"take": gen, "walk": gen, "fetch": gen}, translators,
                            LoopSettings(time_limit=10.0))
     result = layer.solve()
