@@ -34,13 +34,17 @@ class WarmDriver:
         self.broken = False  # it could not start: the driver runs per call instead
         self.requests = 0  # answered so far
         self._buffer = b""
-        self._lock = threading.Lock()  # one request at a time
+        self._lock = threading.RLock()  # one request (or start) at a time: threads share the driver
 
     @property
     def alive(self) -> bool:
         return self.proc is not None and self.proc.poll() is None
 
     def start(self) -> None:
+        with self._lock:
+            self._start()
+
+    def _start(self) -> None:
         if self.alive:
             return
         if self.proc is not None:
@@ -151,13 +155,16 @@ def _read(cwd: str, name: str) -> list:
 
 
 _drivers: dict = {}
+_drivers_lock = threading.Lock()
 
 
 def driver_for(script: str) -> WarmDriver:
-    """The process-wide warm driver of ``script`` (closed at exit)."""
-    if script not in _drivers:
-        _drivers[script] = WarmDriver(script)
-    return _drivers[script]
+    """The process-wide warm driver of ``script`` (closed at exit), shared by threads: it runs one
+    request at a time, each in the folder its caller names."""
+    with _drivers_lock:
+        if script not in _drivers:
+            _drivers[script] = WarmDriver(script)
+        return _drivers[script]
 
 
 @atexit.register
