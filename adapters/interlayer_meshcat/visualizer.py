@@ -589,6 +589,12 @@ class _Explainer:
             elif kind == "refined":
                 html.append(f'<div class="ev done">{t}<h3>All {e.get("steps")} steps refined</h3>'
                             "Every action has a motion plan; the task plan was validated.</div>")
+            elif kind == "shortened" and e.get("dropped"):
+                dropped = e["dropped"]
+                html.append(f'<div class="ev done">{t}<h3>Refined {e.get("refined")} steps, dropped {len(dropped)} as not '
+                            'needed</h3>Shortcutting: the plan still refines without '
+                            + ", ".join(f"<code>{escape(step_str(s))}</code>" for s in dropped)
+                            + f"; the final plan has {len(e.get('plan') or [])} step(s).</div>")
             elif kind == "end":
                 ok = e.get("status") == "solved"
                 html.append(f'<div class="ev {"done" if ok else "dead"}">{t}<h3>End: {escape(str(e.get("status")))}</h3>'

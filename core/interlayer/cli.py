@@ -19,6 +19,17 @@ def log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
+def step_text(step: dict) -> str:
+    return f"{step['action']}({', '.join(step['args'])})"
+
+
+def shortened_text(e: dict) -> str:
+    """The 'shortened' trace event in words: how many steps were refined and which were dropped."""
+    dropped = e["dropped"]
+    return (f"refined {e['refined']} steps, dropped {len(dropped)} as not needed: "
+            + "; ".join(step_text(s) for s in dropped))
+
+
 def progress_printer(verbose: bool):
     """Turn trace events into short human-readable lines on stderr."""
 
@@ -27,7 +38,7 @@ def progress_printer(verbose: bool):
         kind = e["type"]
         if kind == "task_plan":
             if e["status"] == "solved":
-                steps = "; ".join(f"{s['action']}({', '.join(s['args'])})" for s in e["plan"])
+                steps = "; ".join(step_text(s) for s in e["plan"])
                 cost = f", cost {e['cost']:g}" if e.get("cost") is not None else ""
                 log(f"{t} task plan #{e['call']} from step {e['from_step']} ({e['time']:.2f} s{cost}): {steps}")
             else:
@@ -47,6 +58,8 @@ def progress_printer(verbose: bool):
             log(f"{t} reset (epoch {e['epoch']}): {e['reason']}; learned facts cleared, generators reseeded")
         elif kind == "refined":
             log(f"{t} refinement found for all {e['steps']} steps")
+        elif kind == "shortened" and e["dropped"]:
+            log(f"{t} {shortened_text(e)}")
         elif kind == "warning":
             log(f"warning: {e['message']}")
         elif kind == "attempt" and verbose:
@@ -60,6 +73,10 @@ def cmd_plan(args) -> int:
     from . import api
     from .loop import Interrupted
 
+    if args.verbose:  # libraries' own messages (e.g. OMPL's) too
+        import logging
+
+        logging.getLogger("interlayer").setLevel(logging.INFO)
     listeners = [] if args.quiet else [progress_printer(args.verbose)]
     if args.dump_pddl and not args.out:
         raise UserError("--dump-pddl writes into OUT_DIR/pddl/: give --out DIR as well.")
@@ -228,7 +245,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dump-pddl", action="store_true",
                    help="write each task-planner call's problem to OUT_DIR/pddl/ (call-NNN-domain.pddl, call-NNN-problem.pddl)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
-    p.add_argument("-v", "--verbose", action="store_true", help="show every refinement attempt")
+    p.add_argument("-v", "--verbose", action="store_true", help="show every refinement attempt and the libraries' own messages (OMPL's)")
     p.set_defaults(func=cmd_plan)
 
     c = sub.add_parser("check", parents=[common], help="show pose references, Prop. 1 defaults and uniformity (Def. 1)")

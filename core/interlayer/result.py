@@ -20,6 +20,7 @@ class Result:
     counts: dict = field(default_factory=dict)
     seed: int = 0
     config: dict = field(default_factory=dict)
+    shortcut_dropped: list = field(default_factory=list)  # GroundSteps refined, then dropped as not needed
     refinement: Any = None  # domain trajectory (per step), when solved
     trace: Any = None
     problem: Any = None
@@ -36,6 +37,8 @@ class Result:
             "plan": [s.to_json() for s in self.plan],
             "plan_cost": self.plan_cost,
             "learned_facts": [logic.atom_str(a) for a in self.learned_facts],
+            "shortcut": {"refined_steps": len(self.plan) + len(self.shortcut_dropped),
+                         "dropped": [s.to_json() for s in self.shortcut_dropped]} if self.solved else None,
             "replans": self.replans,
             "task_planner_calls": self.task_planner_calls,
             "times": {k: round(v, 4) for k, v in self.times.items()},

@@ -1,0 +1,94 @@
+"""What a user waits for and sees (issue 23): the shortcut reported where steps are counted, C++
+library noise kept out of successful runs, the process's wall time and its parts, the status line."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def cli(*args, **kw):
+    proc = subprocess.run([sys.executable, "-m", "interlayer.cli", *args], capture_output=True, text=True, cwd=ROOT,
+                          timeout=600, **kw)
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+@pytest.fixture(scope="module")
+def pr2_run(tmp_path_factory):
+    """examples/pr2_pick.toml through the CLI: 6 steps refined, the shortcutting drops 2 base moves."""
+    out = tmp_path_factory.mktemp("pr2") / "run"
+    code, _, err = cli("plan", "examples/pr2_pick.toml", "--out", str(out))
+    assert code == 0, err
+    return out, err
+
+
+def test_the_shortcut_is_reported_in_the_log_result_and_explain_page(pr2_run, tmp_path):
+    out, err = pr2_run
+    result = json.loads((out / "result.json").read_text())
+    short = result["shortcut"]
+    assert short["refined_steps"] == len(result["plan"]) + len(short["dropped"]) == 6
+    assert [s["action"] for s in short["dropped"]] == ["move_base", "move_base"]
+    dropped = "; ".join(f"{s['action']}({', '.join(s['args'])})" for s in short["dropped"])
+    assert f"refined 6 steps, dropped 2 as not needed: {dropped}" in err
+    assert result["counts"]["plan_length_before_shortcut"] == 6
+    from interlayer.cli import main
+
+    page = tmp_path / "explain.html"
+    assert main(["explain", str(out), "-o", str(page)]) == 0
+    html = page.read_text()
+    assert "Refined 6 steps, dropped 2 as not needed" in html
+    assert all(f"<code>{s['action']}({', '.join(s['args'])})</code>" in html for s in short["dropped"])
+
+
+def test_a_run_without_shortcut_reports_nothing_dropped():
+    from interlayer import api
+
+    result = api.solve(str(ROOT / "examples" / "gripper2d.toml"), overrides=["planner.shortcut=false"])
+    assert result.solved and result.to_json()["shortcut"] == {"refined_steps": len(result.plan), "dropped": []}
+    assert not [e for e in result.trace.events if e["type"] == "shortened"]
+
+
+# An OMPL query whose goal is in collision: OMPL's C++ code reports it on stderr ("Error: RRTConnect:
+# Unable to sample any valid states for goal tree") while the search it is part of goes on.
+OMPL_INVALID_GOAL = """
+import logging, sys
+import numpy as np
+from interlayer.motion import ConfigSpace
+from interlayer_ompl.planner import OMPLPlanner
+if sys.argv[1] == "verbose":
+    logging.getLogger("interlayer").setLevel(logging.INFO)  # what 'interlayer plan -v' does
+space = ConfigSpace(kind="vector", lower=(0.0, 0.0), upper=(1.0, 1.0), circular=(False, False))
+planner = OMPLPlanner("RRTConnect", time_limit=0.2)
+planner.seed = 0
+assert planner._plan(space, np.array([0.1, 0.1]), np.array([0.9, 0.9]), lambda q: bool(q[0] < 0.5), 0.2) is None
+"""
+
+
+def test_ompl_messages_only_in_verbose_mode():
+    def stderr(mode):
+        proc = subprocess.run([sys.executable, "-c", OMPL_INVALID_GOAL, mode], capture_output=True, text=True,
+                              timeout=120)
+        assert proc.returncode == 0, proc.stderr
+        return proc.stderr
+
+    assert "Unable to sample" not in stderr("quiet")
+    assert "Unable to sample any valid states" in stderr("verbose")
+
+
+def test_plan_verbose_turns_the_libraries_messages_on():
+    from interlayer.cli import main
+
+    import logging
+
+    logger = logging.getLogger("interlayer")
+    before = logger.level
+    try:
+        assert main(["plan", str(ROOT / "examples" / "gripper2d.toml"), "-q"]) == 0
+        assert not logger.isEnabledFor(logging.INFO)
+        assert main(["plan", str(ROOT / "examples" / "gripper2d.toml"), "-q", "-v"]) == 0
+        assert logger.isEnabledFor(logging.INFO)
+    finally:
+        logger.setLevel(before)
