@@ -92,3 +92,44 @@ def test_plan_verbose_turns_the_libraries_messages_on():
         assert logger.isEnabledFor(logging.INFO)
     finally:
         logger.setLevel(before)
+
+
+# -- the wait after planning: trajectory timing ------------------------------------------------------
+
+TIMING_IMPORTS = """
+import sys
+import numpy as np
+from interlayer_optim.timing import time_parameterize
+points = time_parameterize(np.array([[0.0, 0.0], [0.5, 0.1], [1.0, 0.15]]), 1.0, 2.0)
+assert points[-1]["time_from_start"] > 0
+print("matplotlib.figure" in sys.modules)
+"""
+
+
+def test_timing_does_not_load_plotting():
+    """toppra imports matplotlib.pyplot for its plots (a third of its import time): not loaded for timing."""
+    proc = subprocess.run([sys.executable, "-c", TIMING_IMPORTS], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "False"
+
+
+def test_timing_solves_one_topp_ra_problem_per_piece(monkeypatch):
+    """A path without corners is one piece: one TOPP-RA instance, whatever its number of points."""
+    import numpy as np
+    import toppra.algorithm
+
+    from interlayer_optim.timing import _pieces, time_parameterize
+
+    made = []
+
+    class Counted(toppra.algorithm.TOPPRA):
+        def __init__(self, *args, **kw):
+            made.append(1)
+            super().__init__(*args, **kw)
+
+    monkeypatch.setattr(toppra.algorithm, "TOPPRA", Counted)
+    path = np.array([[0.0, 0.0], [0.3, 0.02], [0.6, 0.05], [0.9, 0.09], [1.2, 0.14]])
+    assert len(_pieces(path)) == 1
+    points = time_parameterize(path, 1.0, 2.0)
+    assert len(made) == 1 and len(points) == len(path)
+    assert [p["positions"] for p in points] == path.tolist()
