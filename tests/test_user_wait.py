@@ -133,3 +133,95 @@ def test_timing_solves_one_topp_ra_problem_per_piece(monkeypatch):
     points = time_parameterize(path, 1.0, 2.0)
     assert len(made) == 1 and len(points) == len(path)
     assert [p["positions"] for p in points] == path.tolist()
+
+
+# -- the whole wait, in result.json and the bench database ---------------------------------------------
+
+def test_result_json_records_the_whole_wait_and_its_parts(pr2_run):
+    out, _ = pr2_run
+    result = json.loads((out / "result.json").read_text())
+    wall = result["wall"]
+    assert set(wall) == {"startup", "planning", "export", "writing", "other", "total"}
+    assert wall["planning"] == result["times"]["total"]
+    assert abs(sum(v for k, v in wall.items() if k != "total") - wall["total"]) < 1e-3
+    assert wall["startup"] > 0 and wall["export"] > 0  # the PR2's trajectory is timed (TOPP-RA) on export
+
+
+PROCESS_START = """
+import time
+time.sleep(0.3)  # before interlayer is imported: the process's start-up must still count it
+from interlayer.trace import process_start
+print(time.perf_counter() - process_start())
+"""
+
+
+def test_the_wait_starts_when_the_process_does():
+    proc = subprocess.run([sys.executable, "-c", PROCESS_START], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert float(proc.stdout) >= 0.3
+
+
+def test_bench_records_the_wait_and_report_shows_it_beside_planner_time(tmp_path):
+    from interlayer.bench import db
+    from interlayer.bench.report import write_report
+    from interlayer.bench.runner import run_suite
+    from interlayer.bench.suite import load_suite
+
+    suite = tmp_path / "suite.toml"
+    suite.write_text(f'name = "wait"\nseeds = "0"\ntime_limit = 60\n[[rows]]\nname = "Gripper-2D"\n'
+                     f'config = {json.dumps(str(ROOT / "examples" / "gripper2d.toml"))}\n')
+    path = tmp_path / "r.sqlite"
+    assert run_suite(load_suite(str(suite)), path, progress=False)["statuses"] == {"solved": 1}
+    con = db.connect(path, create=False)
+    (run,), _ = db.load(con)
+    con.close()
+    wall = run["wall"]
+    assert {"startup", "planning", "export", "writing", "total", "process", "validation"} <= set(wall)
+    assert wall["planning"] == run["time_total"] and wall["process"] == run["wall_time"] >= wall["total"]
+    write_report(path, tmp_path / "report")
+    lines = (tmp_path / "report" / "report.md").read_text().splitlines()
+    at = next(i for i, x in enumerate(lines) if x.startswith("| problem | ") and "process wall" in x)
+    header, line = lines[at].split(" | "), lines[at + 2].split(" | ")  # the row after the separator
+    assert line[0] == "| Gripper-2D"
+    assert line[header.index("total")] == f"{run['time_total']:.2f}"
+    assert line[header.index("start-up")] == f"{wall['startup']:.2f}"
+    assert line[header.index("validation process")] == f"{wall['validation']:.2f}"
+
+
+def test_an_older_bench_database_gains_the_wall_column(tmp_path):
+    import sqlite3
+
+    from interlayer.bench import db
+
+    path = tmp_path / "old.sqlite"
+    with sqlite3.connect(path) as con:
+        con.executescript(db.SCHEMA.replace("    wall TEXT,", ""))
+    con = db.connect(path, create=False)
+    assert "wall" in {r[1] for r in con.execute("PRAGMA table_info(runs)")}
+    con.close()
+
+
+EXIT_AFTER = """
+import atexit
+from interlayer.cli import exit_after
+
+class Finalized:
+    def __del__(self):
+        print("torn down", flush=True)
+
+kept = Finalized()
+
+def entry():
+    atexit.register(lambda: print("handler ran", flush=True))
+    print("done", flush=True)
+    return 3
+
+exit_after(entry)
+"""
+
+
+def test_the_command_exits_without_tearing_the_interpreter_down():
+    """The exit code and the atexit handlers stay; the module teardown (0.2-0.5 s) goes."""
+    proc = subprocess.run([sys.executable, "-c", EXIT_AFTER], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 3, proc.stderr
+    assert proc.stdout.split() == ["done", "handler", "ran"]

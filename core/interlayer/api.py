@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -197,13 +198,16 @@ def prepare(source, overrides=None, host: PluginHost | None = None) -> Prepared:
                     translators_for(host, config), stats, cartesian)
 
 
-def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), pddl_dir=None) -> Result:
+def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), pddl_dir=None,
+          origin: float | None = None) -> Result:
     """Solve a problem: ``source`` is a config path, a problem file, an output folder or a dict;
     ``overrides`` a list of ``"section.key=value"`` strings or a dict ``{"section.key": value}``.
-    ``pddl_dir``: write every task-planner call's problem there as PDDL.
+    ``pddl_dir``: write every task-planner call's problem there as PDDL. ``origin``: where the
+    result's wall time starts (``time.perf_counter()`` clock; default: now).
 
     Raises ``UserError`` for bad input, ``PluginFault`` for an exception in a plugin's code and
     ``Interrupted`` (a ``KeyboardInterrupt`` whose ``result`` holds the run so far) on Ctrl-C."""
+    origin = time.perf_counter() if origin is None else origin
     host = host or PluginHost()
     run = prepare(source, overrides, host)
     config, problem, model, stats = run.config, run.problem, run.model, run.stats
@@ -228,10 +232,19 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
     try:
         result = layer.solve()
     except Interrupted as stop:
+        _clocked(stop.result, origin)
         stop.result.config = config
         raise
+    _clocked(result, origin)
     result.config = config
     return result
+
+
+def _clocked(result: Result, origin: float) -> None:
+    """The wait so far: start-up (imports, plugins, the scene and robot, the task planner's start) and planning."""
+    planning = result.times.get("total", 0.0)
+    result.origin = origin
+    result.wall = {"startup": max(0.0, time.perf_counter() - planning - origin), "planning": planning}
 
 
 def write_outputs(result: Result, out_dir) -> Path:
@@ -241,15 +254,32 @@ def write_outputs(result: Result, out_dir) -> Path:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise UserError(f"Cannot create the output folder {out}: {exc.strerror}.") from None
-    _write(out / "result.json", result.to_json())
-    (out / "config.toml").write_text(cfg.to_toml(result.config))
+    start = time.perf_counter()
     problem = result.problem
+    trajectory = None
+    if result.solved and hasattr(problem.geometry, "trajectory_json"):  # e.g. timing by TOPP-RA
+        trajectory = problem.geometry.trajectory_json(result.plan, result.refinement)
+    exported = time.perf_counter()
+    (out / "config.toml").write_text(cfg.to_toml(result.config))
     _write(out / "problem.json", {"name": problem.name, "source": problem.source, "objects": dict(problem.objects),
                                   "init": sorted(" ".join(a) for a in problem.init), "goal": problem.goal})
     _write(out / "trace.json", result.trace.to_json())
-    if result.solved and hasattr(problem.geometry, "trajectory_json"):
-        _write(out / "trajectory.json", problem.geometry.trajectory_json(result.plan, result.refinement))
+    if trajectory is not None:
+        _write(out / "trajectory.json", trajectory)
+    _account(result, start, exported)
+    _write(out / "result.json", result.to_json())  # last, with the wait it completes
     return out
+
+
+def _account(result: Result, start: float, exported: float) -> None:
+    """``result.wall`` completed: export, writing, the rest (between the parts) and the total so far."""
+    now = time.perf_counter()
+    wall = {k: v for k, v in result.wall.items() if k in ("startup", "planning")}
+    wall.update(export=exported - start, writing=now - exported)
+    if result.origin is not None:
+        wall["total"] = now - result.origin
+        wall["other"] = max(0.0, wall["total"] - sum(v for k, v in wall.items() if k != "total"))
+    result.wall = wall
 
 
 def _write(path: Path, data) -> None:

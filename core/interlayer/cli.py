@@ -72,6 +72,7 @@ def progress_printer(verbose: bool):
 def cmd_plan(args) -> int:
     from . import api
     from .loop import Interrupted
+    from .trace import process_start
 
     if args.verbose:  # libraries' own messages (e.g. OMPL's) too
         import logging
@@ -82,7 +83,8 @@ def cmd_plan(args) -> int:
         raise UserError("--dump-pddl writes into OUT_DIR/pddl/: give --out DIR as well.")
     pddl_dir = f"{args.out}/pddl" if args.dump_pddl else None
     try:
-        result = api.solve(args.source, overrides=args.set, listeners=listeners, pddl_dir=pddl_dir)
+        result = api.solve(args.source, overrides=args.set, listeners=listeners, pddl_dir=pddl_dir,
+                           origin=process_start())
     except Interrupted as stop:  # keep what was done: the trace so far explains the run
         if args.out:
             api.write_outputs(stop.result, args.out)
@@ -303,5 +305,32 @@ def main(argv=None) -> int:
         return EXIT_NOT_SOLVED
 
 
+def exit_after(entry) -> None:
+    """Run ``entry()`` and exit with its code without tearing the interpreter down: freeing hundreds of
+    modules and the C++ libraries' objects one by one takes 0.2-0.5 s that a user would wait for after
+    the last line. atexit handlers registered since still run (e.g. stopping a warm task planner)."""
+    import atexit
+
+    code = []
+
+    def leave():  # registered first, so it runs last (after non-daemon threads ended and every later handler)
+        if code:
+            os._exit(code[0])
+
+    atexit.register(leave)
+    code.append(entry())
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe
+            pass
+    sys.exit(code[0])
+
+
+def run() -> None:
+    """The ``interlayer`` command."""
+    exit_after(main)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    run()

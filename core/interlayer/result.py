@@ -17,6 +17,8 @@ class Result:
     replans: int = 0
     task_planner_calls: int = 0
     times: dict = field(default_factory=dict)
+    wall: dict = field(default_factory=dict)  # the wait: startup, planning, export, writing, other, total (s)
+    origin: float | None = None  # where ``wall`` starts, on the perf_counter clock (the process's start for the CLI)
     counts: dict = field(default_factory=dict)
     seed: int = 0
     config: dict = field(default_factory=dict)
@@ -42,6 +44,7 @@ class Result:
             "replans": self.replans,
             "task_planner_calls": self.task_planner_calls,
             "times": {k: round(v, 4) for k, v in self.times.items()},
+            "wall": {k: round(v, 4) for k, v in self.wall.items()},
             "counts": self.counts,
             "seed": self.seed,
             "config": self.config,
