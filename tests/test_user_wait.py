@@ -225,3 +225,47 @@ def test_the_command_exits_without_tearing_the_interpreter_down():
     proc = subprocess.run([sys.executable, "-c", EXIT_AFTER], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 3, proc.stderr
     assert proc.stdout.split() == ["done", "handler", "ran"]
+
+
+# -- progress while planning ------------------------------------------------------------------------
+
+def _plan_on_a_terminal(*args):
+    """stderr on a pseudo-terminal, as in a user's shell: (exit code, what the terminal received)."""
+    import os
+    import pty
+
+    master, slave = pty.openpty()
+    proc = subprocess.Popen([sys.executable, "-m", "interlayer.cli", "plan", "examples/gripper2d.toml", *args],
+                            cwd=ROOT, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=slave)
+    os.close(slave)
+    received = b""
+    while True:
+        try:
+            chunk = os.read(master, 65536)
+        except OSError:  # EIO: the process closed the terminal
+            break
+        if not chunk:
+            break
+        received += chunk
+    os.close(master)
+    proc.stdout.read()
+    return proc.wait(timeout=300), received.decode()
+
+
+def test_on_a_terminal_one_status_line_updates_in_place():
+    code, tty = _plan_on_a_terminal()
+    assert code == 0, tty
+    redraws = [x for x in tty.split("\r\x1b[K") if x.startswith("[")]
+    assert any("task-planner calls 2, replans 1" in x and "refined prefix 4/4" in x for x in redraws)
+    assert any("error-free refinement | step " in x for x in redraws)
+    assert any("partial refinement" in x for x in redraws)
+    assert "task plan #2 from step 0" in tty and "Solved in" in tty  # the event lines, above the status line
+    last = tty.rsplit("\r\x1b[K", 1)[1]
+    assert last.lstrip("\r\n").startswith("Solved in")  # cleared before the summary
+
+
+def test_quiet_on_a_terminal_and_plain_lines_elsewhere():
+    code, tty = _plan_on_a_terminal("-q")
+    assert code == 0 and "\x1b[K" not in tty and "task plan #" not in tty and "Solved in" in tty
+    code, _, err = cli("plan", "examples/gripper2d.toml")
+    assert code == 0 and "\r" not in err and "\x1b" not in err and "task plan #2 from step 0" in err

@@ -34,6 +34,8 @@ def progress_printer(verbose: bool):
     """Turn trace events into short human-readable lines on stderr."""
 
     def show(e):
+        if e["type"] == "attempt" and not verbose:
+            return
         t = f"[{e['t']:7.2f}s]"
         kind = e["type"]
         if kind == "task_plan":
@@ -62,11 +64,106 @@ def progress_printer(verbose: bool):
             log(f"{t} {shortened_text(e)}")
         elif kind == "warning":
             log(f"warning: {e['message']}")
-        elif kind == "attempt" and verbose:
+        elif kind == "attempt":
             verdict = "ok" if e["ok"] else (e["failure"] or {}).get("detail") or "failed"
             log(f"{t}   {e['mode']} step {e['step']} {e['action']} [{e['candidate']}]: {verdict}")
 
+    show.verbose = verbose
     return show
+
+
+class StatusLine:
+    """On a terminal: one status line at the bottom of stderr, redrawn in place (elapsed time, phase,
+    task-planner calls, replans, the current step, the longest refined prefix), with the event lines
+    printed above it; a daemon thread redraws it while a step takes long."""
+
+    TICK = 0.25  # s between redraws of the elapsed time
+
+    def __init__(self, events, stream=None):
+        import threading
+
+        from .trace import process_start
+
+        self.events, self.stream = events, stream or sys.stderr
+        self.start = process_start()  # the wait so far, imports included
+        self.phase, self.calls, self.replans = "starting (imports, plugins, scene)", 0, 0
+        self.step, self.plan_length, self.best = None, 0, 0
+        self.lock, self.shown, self.stopped = threading.Lock(), False, threading.Event()
+        threading.Thread(target=self._tick, daemon=True, name="interlayer-status").start()
+
+    def _tick(self):
+        while not self.stopped.wait(self.TICK):
+            self.draw()
+
+    def text(self) -> str:
+        import time
+
+        parts = [f"[{time.perf_counter() - self.start:7.1f}s] {self.phase}"]
+        if self.plan_length:
+            if self.step is not None:
+                parts.append(f"step {self.step}/{self.plan_length}")
+            parts.append(f"refined prefix {self.best}/{self.plan_length}")
+        parts.append(f"task-planner calls {self.calls}, replans {self.replans}")
+        return " | ".join(parts)
+
+    def draw(self):
+        import shutil
+
+        width = shutil.get_terminal_size((100, 20)).columns - 1
+        with self.lock:
+            if not self.stopped.is_set():
+                self.stream.write("\r\x1b[K" + self.text()[:width])
+                self.stream.flush()
+                self.shown = True
+
+    def clear(self):
+        with self.lock:
+            if self.shown:
+                self.stream.write("\r\x1b[K")
+                self.stream.flush()
+                self.shown = False
+
+    def set_phase(self, phase: str):
+        self.phase = phase
+        self.draw()
+
+    def stop(self):
+        self.stopped.set()
+        self.clear()
+
+    def __call__(self, e):
+        kind = e["type"]
+        if kind in ("start", "failure"):
+            self.phase = "task planning"
+        elif kind == "task_plan":
+            self.calls = e["call"]
+            if e["status"] == "solved":
+                self.plan_length = e["from_step"] + len(e["plan"])
+                self.phase = "refinement"
+        elif kind == "refine":
+            self.phase, self.plan_length = f"{e['mode']} refinement", len(e["plan"])
+            self.best = min(self.best, e["from_step"])
+        elif kind == "attempt":
+            self.step = e["step"]
+            if e["ok"]:
+                self.best = max(self.best, e["step"] + 1)
+        elif kind == "replan":
+            self.replans += 1
+            self.plan_length, self.best = len(e["plan"]), e["fail_step"]
+        elif kind == "reset":
+            self.best, self.phase = 0, f"reset (epoch {e['epoch']})"
+        elif kind == "refined":
+            self.phase, self.step = "shortcutting", None
+        elif kind == "shortened":
+            self.plan_length = self.best = len(e["plan"])
+            self.phase = "validating"
+        elif kind == "end":
+            self.phase = "done"
+        if kind != "attempt" or self.events.verbose:  # the event lines go above the status line
+            self.clear()
+            with self.lock:
+                self.events(e)
+        self.draw()
 
 
 def cmd_plan(args) -> int:
@@ -78,22 +175,32 @@ def cmd_plan(args) -> int:
         import logging
 
         logging.getLogger("interlayer").setLevel(logging.INFO)
-    listeners = [] if args.quiet else [progress_printer(args.verbose)]
     if args.dump_pddl and not args.out:
         raise UserError("--dump-pddl writes into OUT_DIR/pddl/: give --out DIR as well.")
+    lines = progress_printer(args.verbose)
+    status = StatusLine(lines) if not args.quiet and sys.stderr.isatty() else None
+    listeners = [] if args.quiet else [status or lines]
     pddl_dir = f"{args.out}/pddl" if args.dump_pddl else None
     try:
-        result = api.solve(args.source, overrides=args.set, listeners=listeners, pddl_dir=pddl_dir,
-                           origin=process_start())
-    except Interrupted as stop:  # keep what was done: the trace so far explains the run
+        try:
+            result = api.solve(args.source, overrides=args.set, listeners=listeners, pddl_dir=pddl_dir,
+                               origin=process_start())
+        except Interrupted as stop:  # keep what was done: the trace so far explains the run
+            if args.out:
+                api.write_outputs(stop.result, args.out)
+            if status:
+                status.stop()
+            log(f"interrupted{f'; wrote the trace so far to {args.out}/trace.json' if args.out else ''}")
+            if args.json:
+                print(json.dumps(stop.result.to_json()))
+            return EXIT_INTERRUPTED
         if args.out:
-            api.write_outputs(stop.result, args.out)
-        log(f"interrupted{f'; wrote the trace so far to {args.out}/trace.json' if args.out else ''}")
-        if args.json:
-            print(json.dumps(stop.result.to_json()))
-        return EXIT_INTERRUPTED
-    if args.out:
-        api.write_outputs(result, args.out)
+            if status:
+                status.set_phase(f"writing {args.out}/" + (" (exporting the trajectory)" if result.solved else ""))
+            api.write_outputs(result, args.out)
+    finally:
+        if status:
+            status.stop()
     data = result.to_json()
     if args.json:
         print(json.dumps(data))
