@@ -269,3 +269,73 @@ def test_quiet_on_a_terminal_and_plain_lines_elsewhere():
     assert code == 0 and "\x1b[K" not in tty and "task plan #" not in tty and "Solved in" in tty
     code, _, err = cli("plan", "examples/gripper2d.toml")
     assert code == 0 and "\r" not in err and "\x1b" not in err and "task plan #2 from step 0" in err
+
+
+# -- the live viewer: streamed, on this machine only, stopped with the run --------------------------------
+
+def _listening(pid):
+    psutil = pytest.importorskip("psutil")
+    return {(c.laddr.ip, c.laddr.port) for c in psutil.Process(pid).net_connections("tcp")
+            if c.status == psutil.CONN_LISTEN}
+
+
+@pytest.mark.parametrize("host", ["127.0.0.1", "127.0.0.2"])
+def test_viz_streams_the_search_from_a_server_on_the_named_address_only(host):
+    import urllib.request
+
+    from interlayer import api
+    from interlayer.viz import live_stream
+
+    viewer = live_stream(host=host)
+    shown = []
+
+    def watch(event):  # after the viewer has seen the event: what its live viewer shows
+        if viewer.scene is not None:
+            shown.append((event["type"], viewer.scene.title, viewer.scene._live_window.get_scene().count("fetch(")))
+
+    result = api.solve(str(ROOT / "examples" / "gripper2d.toml"), listeners=[viewer, watch])
+    proc = viewer.scene._live_proc
+    try:
+        ports = _listening(proc.pid)
+        assert ports and {ip for ip, _ in ports} == {host}  # ZeroMQ and the web server: not 0.0.0.0
+        assert viewer.url.startswith(f"http://{host}:")
+        with urllib.request.urlopen(viewer.url, timeout=30) as page:
+            assert page.status == 200
+        titles = [t for _, t, _ in shown]
+        assert titles[0].endswith("initial world") and "failure at step 0" in titles
+        failure = next(n for kind, t, n in shown if kind == "failure")
+        assert failure > 0  # the failure's world reached the server
+        viewer.finish(result, wait=False)
+    finally:
+        viewer.close()
+    assert proc.wait(timeout=30) is not None  # stopped with the run
+    with pytest.raises(OSError):
+        urllib.request.urlopen(viewer.url, timeout=10)
+
+
+VIZ_KILLED = """
+import os, signal, sys
+from interlayer import api
+from interlayer.viz import live_stream
+
+viewer = live_stream()
+
+def die(event):
+    if event["type"] == "failure":
+        print(viewer.scene._live_proc.pid, flush=True)
+        os.kill(os.getpid(), signal.SIGKILL)  # no clean-up at all
+
+api.solve(sys.argv[1], listeners=[viewer, die])
+"""
+
+
+def test_the_viewer_server_stops_when_its_run_is_killed():
+    psutil = pytest.importorskip("psutil")
+    proc = subprocess.run([sys.executable, "-c", VIZ_KILLED, str(ROOT / "examples" / "gripper2d.toml")],
+                          capture_output=True, text=True, timeout=300)
+    server = int(proc.stdout.split()[0])
+    try:
+        psutil.Process(server).wait(timeout=60)  # it watches its parent
+    except psutil.NoSuchProcess:
+        pass
+    assert not psutil.pid_exists(server) or psutil.Process(server).status() == psutil.STATUS_ZOMBIE

@@ -276,6 +276,10 @@ class MeshcatVisualizer:
         return write_page(path, html_page(title, body, _EXPLAIN_CSS))
 
     # -- interlayer plan --viz --------------------------------------------------------------
+    def stream(self, host: str = "127.0.0.1"):
+        """A live viewer that follows a run (``plan --viz``); see :class:`LiveRun`."""
+        return LiveRun(host)
+
     def live(self, result):
         """Show the solution (or the initial world) in a live meshcat viewer.
 
@@ -309,6 +313,66 @@ class MeshcatVisualizer:
         else:
             print("(not a terminal: the viewer stops when this command exits)", file=sys.stderr, flush=True)
         return scene
+
+
+class LiveRun:
+    """A trace listener that streams a run into one live meshcat viewer: the initial world once the
+    problem is built (``prepared``), the world of each failing refinement as it happens (obstructing
+    objects red, the object acted on orange; as on the explain page), then ``finish(result)``: the
+    refined plan's animation. Its server listens on ``host`` only and stops with ``close()`` (and with
+    this process, however it ends)."""
+
+    def __init__(self, host: str = "127.0.0.1"):
+        self.host, self.problem, self.scene, self.url = host, None, None, None
+
+    def prepared(self, problem):
+        self.problem = problem
+        scene, _ = solution_scene(problem, None, f"{problem.name}: initial world")
+        if scene is None:
+            print("interlayer: this domain cannot draw itself; no live view", file=sys.stderr)
+            return
+        import atexit
+
+        self.url = scene.live(host=self.host)
+        self.scene = scene
+        atexit.register(self.close)
+
+    def __call__(self, event):
+        if self.scene is not None and event["type"] == "failure":
+            self._show(failure_scene(self.problem, event))
+
+    def _show(self, scene):
+        if scene is not None:
+            scene.replace_live(self.scene)
+            self.scene = scene
+
+    def finish(self, result, wait: bool | None = None):
+        """The refined plan (or the last world shown, when not solved); then, in a terminal, wait for
+        Ctrl-C before the server stops (``wait`` overrides)."""
+        if self.scene is None:
+            return
+        if result.solved and hasattr(self.problem.geometry, "trajectory_json"):
+            traj = json.loads(json.dumps(self.problem.geometry.trajectory_json(result.plan, result.refinement),
+                                         default=_json_default))
+            self._show(solution_scene(self.problem, traj, f"{self.problem.name}: refined plan")[0])
+        if wait is None:
+            wait = sys.stdin is not None and sys.stdin.isatty() and sys.stderr.isatty() \
+                and not os.environ.get("INTERLAYER_VIZ_NO_WAIT")
+        if wait:
+            print(f"Viewer running at {self.url}; press Ctrl-C to stop it.", file=sys.stderr, flush=True)
+            try:
+                import time
+
+                while True:
+                    time.sleep(3600)
+            except KeyboardInterrupt:
+                pass
+        self.close()
+
+    def close(self):
+        scene, self.scene = self.scene, None
+        if scene is not None:
+            scene.close()
 
 
 def _json_default(o):

@@ -202,7 +202,9 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
           origin: float | None = None) -> Result:
     """Solve a problem: ``source`` is a config path, a problem file, an output folder or a dict;
     ``overrides`` a list of ``"section.key=value"`` strings or a dict ``{"section.key": value}``.
-    ``pddl_dir``: write every task-planner call's problem there as PDDL. ``origin``: where the
+    ``pddl_dir``: write every task-planner call's problem there as PDDL. ``listeners``: functions
+    called with every trace event (one with a ``prepared(problem)`` method is first told the problem).
+    ``origin``: where the
     result's wall time starts (``time.perf_counter()`` clock; default: now).
 
     Raises ``UserError`` for bad input, ``PluginFault`` for an exception in a plugin's code and
@@ -220,6 +222,9 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
         run.task.prepare(model)
     if hasattr(run.motion, "prepare"):
         run.motion.prepare()
+    for listener in listeners:  # e.g. a live viewer, which draws the problem before the run starts
+        if hasattr(listener, "prepared"):
+            listener.prepared(problem)
     trace = Trace([host.on_event, *listeners])
     for warning in host.warnings:
         trace.emit("warning", message=warning)

@@ -180,6 +180,12 @@ def cmd_plan(args) -> int:
     lines = progress_printer(args.verbose)
     status = StatusLine(lines) if not args.quiet and sys.stderr.isatty() else None
     listeners = [] if args.quiet else [status or lines]
+    viewer = None
+    if args.viz:  # streams the search; its server stops with the run
+        from .viz import live_stream
+
+        viewer = live_stream(host=args.viz_host)
+        listeners.append(viewer)
     pddl_dir = f"{args.out}/pddl" if args.dump_pddl else None
     try:
         try:
@@ -190,6 +196,8 @@ def cmd_plan(args) -> int:
                 api.write_outputs(stop.result, args.out)
             if status:
                 status.stop()
+            if viewer:
+                viewer.close()
             log(f"interrupted{f'; wrote the trace so far to {args.out}/trace.json' if args.out else ''}")
             if args.json:
                 print(json.dumps(stop.result.to_json()))
@@ -198,6 +206,10 @@ def cmd_plan(args) -> int:
             if status:
                 status.set_phase(f"writing {args.out}/" + (" (exporting the trajectory)" if result.solved else ""))
             api.write_outputs(result, args.out)
+    except BaseException:
+        if viewer:
+            viewer.close()
+        raise
     finally:
         if status:
             status.stop()
@@ -218,10 +230,8 @@ def cmd_plan(args) -> int:
         if args.out:
             log(f"Wrote {args.out}/ (result.json, trace.json, config.toml, problem.json"
                 f"{', trajectory.json' if result.solved else ''}).")
-    if args.viz:  # after the summary: in a terminal the live viewer waits for Ctrl-C
-        from .viz import live_view
-
-        live_view(result)
+    if viewer:  # after the summary: in a terminal the live viewer waits for Ctrl-C
+        viewer.finish(result)
     return EXIT_OK if result.solved else EXIT_NOT_SOLVED
 
 
@@ -350,7 +360,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("plan", parents=[common], help="solve a problem (config file, problem file or output folder)")
     p.add_argument("source", metavar="CONFIG_OR_PROBLEM")
     p.add_argument("--out", metavar="DIR", help="write result.json, trace.json, trajectory.json, ... to DIR")
-    p.add_argument("--viz", action="store_true", help="open a live 3D viewer of the solution")
+    p.add_argument("--viz", action="store_true",
+                   help="stream the search into a live 3D viewer (each failure's world, then the solution)")
+    p.add_argument("--viz-host", default="127.0.0.1", metavar="ADDRESS",
+                   help="the address the live viewer's server listens on (default 127.0.0.1: this machine only)")
     p.add_argument("--dump-pddl", action="store_true",
                    help="write each task-planner call's problem to OUT_DIR/pddl/ (call-NNN-domain.pddl, call-NNN-problem.pddl)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
