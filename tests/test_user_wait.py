@@ -108,7 +108,10 @@ print("matplotlib.figure" in sys.modules)
 
 def test_timing_does_not_load_plotting():
     """toppra imports matplotlib.pyplot for its plots (a third of its import time): not loaded for timing."""
-    proc = subprocess.run([sys.executable, "-c", TIMING_IMPORTS], capture_output=True, text=True, timeout=120)
+    import os
+
+    proc = subprocess.run([sys.executable, "-c", TIMING_IMPORTS], capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "INTERLAYER_CACHE_DIR": "off"})  # timed here, not read back
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "False"
 
@@ -128,6 +131,7 @@ def test_timing_solves_one_topp_ra_problem_per_piece(monkeypatch):
             super().__init__(*args, **kw)
 
     monkeypatch.setattr(toppra.algorithm, "TOPPRA", Counted)
+    monkeypatch.setenv("INTERLAYER_CACHE_DIR", "off")
     path = np.array([[0.0, 0.0], [0.3, 0.02], [0.6, 0.05], [0.9, 0.09], [1.2, 0.14]])
     assert len(_pieces(path)) == 1
     points = time_parameterize(path, 1.0, 2.0)
@@ -339,3 +343,28 @@ def test_the_viewer_server_stops_when_its_run_is_killed():
     except psutil.NoSuchProcess:
         pass
     assert not psutil.pid_exists(server) or psutil.Process(server).status() == psutil.STATUS_ZOMBIE
+
+
+TIMED_TWICE = """
+import json, sys
+import numpy as np
+from interlayer_optim.timing import time_parameterize
+points = time_parameterize(np.array([[0.0, 0.0], [0.5, 0.1], [1.0, 0.15], [1.0, 0.6]]), [1.0, 0.8], 2.0)
+print(json.dumps({"points": points, "toppra": "toppra" in sys.modules}))
+"""
+
+
+def test_a_path_timed_again_comes_from_the_cache(tmp_path):
+    import os
+
+    def timed(cache):
+        proc = subprocess.run([sys.executable, "-c", TIMED_TWICE], capture_output=True, text=True, timeout=120,
+                              env={**os.environ, "INTERLAYER_CACHE_DIR": cache})
+        assert proc.returncode == 0, proc.stderr
+        return json.loads(proc.stdout)
+
+    first, again = timed(str(tmp_path / "cache")), timed(str(tmp_path / "cache"))
+    assert first["toppra"] and not again["toppra"]  # the second process needs no TOPP-RA
+    assert again["points"] == first["points"]
+    off = timed("off")
+    assert off["toppra"] and off["points"] == first["points"] and len(list((tmp_path / "cache").rglob("*.json"))) == 1

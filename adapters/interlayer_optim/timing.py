@@ -23,10 +23,36 @@ CORNER = 0.3  # rad: a sharper turn between two chords of the path is a stop
 def time_parameterize(points, vmax, amax, step: float = 0.02) -> list[dict]:
     """``trajectory_msgs``-like points ``{positions, velocities, accelerations, time_from_start}``
     along the polyline ``points`` (an n x dof array), rest to rest, within ``|velocity| <= vmax`` and
-    ``|acceleration| <= amax`` per joint."""
+    ``|acceleration| <= amax`` per joint. Kept in the user's cache (``interlayer.cache``): the same
+    path timed again, e.g. by a run repeated with the same seed, needs no TOPP-RA (nor its import)."""
+    from interlayer import cache
+
     P = np.asarray(points, float)
     dof = P.shape[1]
     vmax, amax = np.broadcast_to(np.asarray(vmax, float), (dof,)), np.broadcast_to(np.asarray(amax, float), (dof,))
+    key = cache.digest(_code_version(), P.shape, P.tobytes(), vmax.tobytes(), amax.tobytes(), float(step))
+    timed = cache.load("timing", key)
+    if timed is None:
+        timed = _time_parameterize(P, vmax, amax, step)
+        cache.store("timing", key, timed)
+    return timed
+
+
+@functools.cache
+def _code_version() -> tuple:
+    """What the timing depends on besides its inputs: this module's code, toppra's and numpy's versions."""
+    import importlib.metadata
+    from pathlib import Path
+
+    try:
+        toppra = importlib.metadata.version("toppra")
+    except importlib.metadata.PackageNotFoundError:
+        toppra = None
+    return Path(__file__).read_bytes(), toppra, np.__version__
+
+
+def _time_parameterize(P, vmax, amax, step) -> list[dict]:
+    dof = P.shape[1]
     keep = [0] + [i for i in range(1, len(P)) if np.linalg.norm(P[i] - P[i - 1]) > 1e-9]
     P = P[keep]
     if len(P) < 2:
