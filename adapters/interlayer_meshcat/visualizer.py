@@ -288,27 +288,14 @@ class MeshcatVisualizer:
         at once and the server is stopped when the process exits."""
         import atexit
 
-        problem = result.problem
-        traj = None
-        if result.solved and hasattr(problem.geometry, "trajectory_json"):
-            traj = json.loads(json.dumps(problem.geometry.trajectory_json(result.plan, result.refinement),
-                                         default=_json_default))
-        scene, _ = solution_scene(problem, traj, f"{problem.name}: refined plan")
+        scene = _result_scene(result)
         if scene is None:
             print("interlayer: this domain cannot draw itself; no live view", file=sys.stderr)
             return None
         scene.live()
         atexit.register(scene.close)
-        if sys.stdin is not None and sys.stdin.isatty() and sys.stderr.isatty() \
-                and not os.environ.get("INTERLAYER_VIZ_NO_WAIT"):
-            print("Viewer running; press Ctrl-C to stop it and continue.", file=sys.stderr, flush=True)
-            try:
-                import time
-
-                while True:
-                    time.sleep(3600)
-            except KeyboardInterrupt:
-                pass
+        if _interactive():
+            _until_ctrl_c("Viewer running; press Ctrl-C to stop it and continue.")
             scene.close()
         else:
             print("(not a terminal: the viewer stops when this command exits)", file=sys.stderr, flush=True)
@@ -351,28 +338,42 @@ class LiveRun:
         Ctrl-C before the server stops (``wait`` overrides)."""
         if self.scene is None:
             return
-        if result.solved and hasattr(self.problem.geometry, "trajectory_json"):
-            traj = json.loads(json.dumps(self.problem.geometry.trajectory_json(result.plan, result.refinement),
-                                         default=_json_default))
-            self._show(solution_scene(self.problem, traj, f"{self.problem.name}: refined plan")[0])
-        if wait is None:
-            wait = sys.stdin is not None and sys.stdin.isatty() and sys.stderr.isatty() \
-                and not os.environ.get("INTERLAYER_VIZ_NO_WAIT")
-        if wait:
-            print(f"Viewer running at {self.url}; press Ctrl-C to stop it.", file=sys.stderr, flush=True)
-            try:
-                import time
-
-                while True:
-                    time.sleep(3600)
-            except KeyboardInterrupt:
-                pass
+        if result.solved:
+            self._show(_result_scene(result))
+        if _interactive() if wait is None else wait:
+            _until_ctrl_c(f"Viewer running at {self.url}; press Ctrl-C to stop it.")
         self.close()
 
     def close(self):
         scene, self.scene = self.scene, None
         if scene is not None:
             scene.close()
+
+
+def _result_scene(result):
+    """The refined plan's animation (the initial world when there is none); None if the domain cannot draw."""
+    problem, traj = result.problem, None
+    if result.solved and hasattr(problem.geometry, "trajectory_json"):
+        traj = json.loads(json.dumps(problem.geometry.trajectory_json(result.plan, result.refinement),
+                                     default=_json_default))
+    return solution_scene(problem, traj, f"{problem.name}: refined plan")[0]
+
+
+def _interactive() -> bool:
+    """A user at a terminal, who can stop a live viewer with Ctrl-C."""
+    return sys.stdin is not None and sys.stdin.isatty() and sys.stderr.isatty() \
+        and not os.environ.get("INTERLAYER_VIZ_NO_WAIT")
+
+
+def _until_ctrl_c(message: str) -> None:
+    import time
+
+    print(message, file=sys.stderr, flush=True)
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
 
 
 def _json_default(o):
