@@ -368,3 +368,31 @@ def test_a_path_timed_again_comes_from_the_cache(tmp_path):
     assert again["points"] == first["points"]
     off = timed("off")
     assert off["toppra"] and off["points"] == first["points"] and len(list((tmp_path / "cache").rglob("*.json"))) == 1
+
+
+EARLY_WORKER = """
+import json, sys
+from interlayer import api
+from interlayer_up import planner, warm
+
+run = api.prepare(sys.argv[1])
+seen = {}
+original = planner._import_up
+
+def import_up():  # what is running when Unified-Planning starts to load
+    if "unified_planning" not in sys.modules:
+        seen["workers"] = [d.proc.pid for d in warm._drivers.values() if d.proc is not None]
+    return original()
+
+planner._import_up = import_up
+run.task.prepare(run.model)
+print(json.dumps({"before_up": seen.get("workers"), "after": [d.proc.pid for d in warm._drivers.values() if d.alive]}))
+"""
+
+
+def test_the_warm_fast_downward_process_starts_before_unified_planning_loads():
+    proc = subprocess.run([sys.executable, "-c", EARLY_WORKER, str(ROOT / "examples" / "gripper2d.toml")],
+                          capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout.splitlines()[-1])
+    assert data["before_up"] and data["after"] == data["before_up"]  # that one process, ready

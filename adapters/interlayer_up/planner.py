@@ -4,6 +4,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import importlib
+import importlib.util
 import logging
 import multiprocessing
 import os
@@ -98,6 +99,8 @@ class UPTaskPlanner(TaskPlanner):
         return self._builders[key]
 
     def prepare(self, model):
+        if self.warm and self.engine.startswith("fast-downward"):
+            _spawn_warm_driver()
         env = _quiet_environment()
         from unified_planning.engines.pddl_planner import PDDLPlanner
 
@@ -268,6 +271,24 @@ def _sparse_problem_class():
             return dict(self.explicit_initial_values)
 
     return SparseProblem
+
+
+def _spawn_warm_driver():
+    """Start Fast Downward's warm process before Unified-Planning is imported, so that both start up at
+    once (its script is found without importing up_fast_downward; ``_warm_driver`` waits for it)."""
+    from pathlib import Path
+
+    from . import warm
+
+    spec = importlib.util.find_spec("up_fast_downward")
+    if spec is None or not spec.submodule_search_locations:
+        return
+    script = Path(list(spec.submodule_search_locations)[0]) / "downward" / "fast-downward.py"
+    if script.exists():
+        try:
+            warm.driver_for(str(script)).spawn()
+        except OSError:  # _warm_driver tries again, and says why
+            pass
 
 
 def _warm_driver(engine):
