@@ -396,3 +396,35 @@ def test_the_warm_fast_downward_process_starts_before_unified_planning_loads():
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout.splitlines()[-1])
     assert data["before_up"] and data["after"] == data["before_up"]  # that one process, ready
+
+
+# -- start-up: plugins are discovered without importing every domain's libraries -----------------------
+
+DISCOVERY = """
+import json, sys
+from interlayer.plugins import PluginHost
+host = PluginHost()
+heavy = ["pinocchio", "coal", "numpy", "interlayer_pr2.generators", "interlayer_gripper2d.generators"]
+before = [m for m in heavy if m in sys.modules]
+pick = host["pose_generators"].get("pr2:pick").factory
+print(json.dumps({"before": before, "after": "interlayer_pr2.generators" in sys.modules, "module": pick.__module__}))
+"""
+
+
+def test_discovering_plugins_imports_no_domain_library():
+    proc = subprocess.run([sys.executable, "-c", DISCOVERY], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data == {"before": [], "after": True, "module": "interlayer_pr2.generators"}
+
+
+def test_a_component_registered_by_name_that_cannot_be_imported_is_its_plugins_fault():
+    from interlayer.faults import PluginFault
+    from interlayer.plugins import Registry
+
+    registry = Registry("pose_generators")
+    registry.current_plugin = "my-plugin"
+    registry.add("mine:pick", "my_plugin_that_is_not_there.generators:pick", "a pick")
+    with pytest.raises(PluginFault) as fault:
+        registry.get("mine:pick")
+    assert fault.value.plugin == "my-plugin" and "mine:pick" in str(fault.value)
