@@ -4,6 +4,7 @@ from __future__ import annotations
 import functools
 import logging
 import math
+import threading
 import zlib
 
 import numpy as np
@@ -16,6 +17,11 @@ OPTIMIZING = {"RRTstar", "PRM", "PRMstar", "BITstar", "FMT", "BFMT", "InformedRR
 # so that the query's own segment check (a block of points at a time, see MotionQuery.clear_within)
 # can replace OMPL's point-by-point one; others keep OMPL's.
 EDGE_CHECKED = {"RRTConnect", "RRT", "PRM", "PRMstar", "RRTstar"}
+# OMPL seeds every RNG it makes (planners', samplers', the simplifier's) from one process-wide
+# generator, and its Python bindings reach none of them (RNG.setLocalSeed is for RNGs one holds): a
+# query reseeds that generator and makes its RNGs under this lock, so threads' queries do not draw
+# each other's seeds. Reentrant: a planner built on this one may plan inside its own query.
+_SEEDING = threading.RLock()
 
 
 def _ompl():
@@ -80,6 +86,10 @@ class OMPLPlanner(MotionPlanner):
     def _plan(self, space, start, goal, is_valid, time_limit, clear=None):
         """``clear``: the query's certificate (MotionQuery.certificate); with it, edges are checked a
         block of points at a time (``points_valid``) instead of by OMPL, state by state."""
+        with _SEEDING:
+            return self._query(space, start, goal, is_valid, time_limit, clear)
+
+    def _query(self, space, start, goal, is_valid, time_limit, clear):
         ob, og = _ompl()
         ompl_space = self._space(space)
         se2 = space.kind == "se2"

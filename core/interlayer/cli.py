@@ -11,6 +11,7 @@ import sys
 
 from .errors import UserError
 from .faults import PluginFault
+from .result import MEANING
 
 EXIT_OK, EXIT_NOT_SOLVED, EXIT_USER_ERROR, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -224,7 +225,7 @@ def cmd_plan(args) -> int:
             for i, s in enumerate(result.plan):
                 log(f"  {i}: {s}")
         else:
-            log(f"Not solved ({result.status}): {result.reason}")
+            log(f"Not solved ({result.status}: {MEANING.get(result.status, 'not solved')}): {result.reason}")
         if result.learned_facts:
             log("Learned facts: " + ", ".join(data["learned_facts"]))
         if args.out:
@@ -349,8 +350,42 @@ def cmd_explain(args) -> int:
     return EXIT_OK
 
 
+def distribution_version() -> str:
+    """The installed distribution's version; the package's own in a source checkout that is not installed."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("interlayer")
+    except metadata.PackageNotFoundError:
+        from . import __version__
+
+        return __version__
+
+
+class _Version(argparse.Action):
+    """--version, looked up only when asked for (metadata lookups cost start-up time)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None):
+        super().__init__(option_strings, dest, nargs=0, default=default, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"interlayer {distribution_version()}")
+        parser.exit()
+
+
+def cmd_export(args) -> int:
+    from .export import export
+
+    written = export(args.out_dir, args.format, args.output)
+    log(f"Wrote {written['path']} ({written['segments']} joint trajectories, {written['points']} points).")
+    if args.json:
+        print(json.dumps(written))
+    return EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="interlayer", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action=_Version, help="print the installed version and exit")
     sub = parser.add_subparsers(dest="command", required=True)
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -390,6 +425,16 @@ def build_parser() -> argparse.ArgumentParser:
         page.add_argument("-o", "--output", default=default, help=f"the HTML file to write (default {default})")
         page.add_argument("--visualizer", default="meshcat", help="the registered visualizer to use")
         page.set_defaults(func=func, json=False)
+
+    from .export import FORMATS
+
+    e = sub.add_parser("export", help="write a solved run's joint trajectories for a robot (a ROS 2 bag or CSV)")
+    e.add_argument("out_dir", metavar="OUT_DIR")
+    e.add_argument("--format", required=True, choices=FORMATS,
+                   help="rosbag2: one trajectory_msgs/msg/JointTrajectory per segment (extra 'export'); csv: one row per point")
+    e.add_argument("-o", "--output", required=True, metavar="PATH", help="the bag folder or CSV file to write")
+    e.add_argument("--json", action="store_true", help="print what was written as one JSON object to stdout")
+    e.set_defaults(func=cmd_export)
 
     from .bench.commands import add_commands  # bench, report
 

@@ -56,7 +56,8 @@ def interlayer_register_failure_translators(registry):
     """Register failure translators: ``fn(failure, step, model) -> set of atoms``.
 
     Every translator named in ``planner.translators`` is applied to each motion-planning failure and
-    the union of their facts is added to the state at the failing step (Alg. 1, line 9).
+    the union of their facts is added to the state at the failing step (Alg. 1, line 9); a
+    ``logic.negated(atom)`` in the set deletes ``atom`` from it instead.
 
     :param registry: the failure-translator registry.
     """

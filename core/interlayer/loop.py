@@ -127,11 +127,21 @@ class InterfaceLayer:
         self.learned = []
         self.times_learned.clear()
 
-    def translate(self, failure, step: GroundStep) -> set:
-        facts = set()
+    def translate(self, failure, step: GroundStep) -> tuple[set, set]:
+        """The atoms the translators learned true and those they learned false (``logic.negated``)."""
+        true, false = set(), set()
         for _, fn in self.translators:
-            facts |= set(fn(failure, step, self.model))
-        return facts
+            for fact in fn(failure, step, self.model):
+                if isinstance(fact, logic.Not):
+                    false.add(logic.ground_atom(fact.arg, {}))
+                else:
+                    true.add(fact)
+        return true, false
+
+    def with_learned(self, state: frozenset) -> frozenset:
+        """``state`` with this epoch's learned facts: deletions applied, additions added."""
+        gone = {logic.ground_atom(f.arg, {}) for f in self.learned if isinstance(f, logic.Not)}
+        return (state - gone) | {f for f in self.learned if not isinstance(f, logic.Not)}
 
     def progress_all(self, state: frozenset, plan) -> list:
         """Symbolic states before each step of ``plan`` and after the last one."""
@@ -156,7 +166,7 @@ class InterfaceLayer:
             self.trace.emit("shortcut", dropped=plan_json(dropped), plan=plan_json(shorter))
 
         before = len(self.plan)
-        self.plan, outcomes = shortcut(self.plan, outcomes, self.model, init | frozenset(self.learned), self.geometry,
+        self.plan, outcomes = shortcut(self.plan, outcomes, self.model, self.with_learned(init), self.geometry,
                                        self.motion, world0, self._out_of_time, accepted, self.stats)
         self.stats.count("plan_length_before_shortcut", before)
         self.stats.count("plan_length", len(self.plan))
@@ -183,8 +193,10 @@ class InterfaceLayer:
             self.motion.deadline = self.deadline
         try:
             status, reason, refinement = self._run()
-        except (Infeasible, NoProgress) as exc:
+        except Infeasible as exc:  # a domain's own proof that a reference has no instance
             status, reason, refinement = "unsolvable", str(exc), None
+        except NoProgress as exc:  # nothing proved: the loop stopped itself (watchdog, exhausted budget)
+            status, reason, refinement = "gave_up", str(exc), None
         except KeyboardInterrupt:
             status, reason, refinement = "interrupted", "interrupted by the user (Ctrl-C)", None
         self.stats.times["total"] = time.perf_counter() - t0
@@ -230,23 +242,23 @@ class InterfaceLayer:
                     # (e.g. put-downs kept off an approach ranked since): one of them refined every step
                     return self._solved(init, world0, partial)
                 f = partial.fail_step
-                facts = self.translate(partial.failure, self.plan[f])
-                if not facts:
+                true, false = self.translate(partial.failure, self.plan[f])
+                if not true and not false:
                     self.watch.untranslated(partial.failure, self.plan[f])
-                facts -= states[f]
+                true, false = true - states[f], false & states[f]  # only what changes the state
+                facts = sorted(true) + [logic.negated(a) for a in sorted(false)]
+                shown = [logic.literal_str(a) for a in facts]
                 if not facts:
                     continue  # nothing new to tell the task planner: try the next failure
                 if all(self.times_learned[a] >= RELEARN_LIMIT for a in facts):
-                    self.trace.emit("recurring", step=f, action=str(self.plan[f]), limit=RELEARN_LIMIT,
-                                    facts=[logic.atom_str(a) for a in sorted(facts)])
+                    self.trace.emit("recurring", step=f, action=str(self.plan[f]), limit=RELEARN_LIMIT, facts=shown)
                     continue  # learned and undone again and again in this epoch: try the next failure
                 traj_count += 1
-                state = states[f] | facts  # line 9
-                self.learned += [a for a in sorted(facts) if a not in self.learned]
+                state = (states[f] - false) | true  # line 9
+                self.learned += [a for a in facts if a not in self.learned]
                 self.times_learned.update(facts)
                 self.trace.emit("failure", step=f, action=str(self.plan[f]), candidate=partial.candidate.label,
-                                failure=partial.failure.to_json(), facts=[logic.atom_str(a) for a in sorted(facts)],
-                                world=self.geometry.snapshot(partial.world))
+                                failure=partial.failure.to_json(), facts=shown, world=self.geometry.snapshot(partial.world))
                 new_plan = self.call_task_planner(state, f)  # line 10
                 if new_plan is not None:  # lines 11-13
                     self.replans += 1
@@ -257,8 +269,7 @@ class InterfaceLayer:
                     self.trace.emit("replan", fail_step=f, prefix=plan_json(old[:f]), new_plan=plan_json(new_plan),
                                     plan=plan_json(self.plan))
                     break
-                self.trace.emit("dead_end", step=f, facts=[logic.atom_str(a) for a in sorted(facts)],
-                                status=self.last_task_status)
+                self.trace.emit("dead_end", step=f, facts=shown, status=self.last_task_status)
                 if traj_count >= self.settings.max_traj_count or self._out_of_time():
                     break
             if new_plan is None and not self._out_of_time():  # lines 14-17

@@ -194,8 +194,10 @@ class PluginHost:
         for impl in reversed(self.pm.hook.interlayer_load_problem.get_hookimpls()):
             with blame(impl.plugin_name, "problem loader (interlayer_load_problem)"):
                 problem = impl.function(path=path, params=params, seed=seed)
-            if problem is not None:
-                return problem
+                if problem is not None:
+                    from .contracts import problem as checked
+
+                    return checked(problem)
         return None
 
     def on_event(self, event):

@@ -7,13 +7,24 @@ from typing import Any
 from . import logic
 
 
+# What a status that is not "solved" says, in a phrase for the CLI's summary and the explain page
+MEANING = {
+    "unsolvable": "proved to have no plan",
+    "gave_up": "gave up without a proof that no plan exists",
+    "timeout": "the time limit was reached",
+    "interrupted": "interrupted",
+}
+
+
 @dataclass
 class Result:
-    status: str  # "solved" | "unsolvable" | "timeout"
+    # "solved" | "unsolvable" (proved: no task plan for the initial state, or a domain's Infeasible) |
+    # "gave_up" (the loop stopped itself without a proof: the watchdog) | "timeout" | "interrupted"
+    status: str
     reason: str = ""
     plan: list = field(default_factory=list)  # GroundSteps
     plan_cost: float | None = None  # the sum of the plan's action costs (solved runs)
-    learned_facts: list = field(default_factory=list)  # atoms, in the order learned
+    learned_facts: list = field(default_factory=list)  # atoms and logic.negated atoms, in the order learned
     replans: int = 0
     task_planner_calls: int = 0
     times: dict = field(default_factory=dict)
@@ -38,7 +49,7 @@ class Result:
             "reason": self.reason,
             "plan": [s.to_json() for s in self.plan],
             "plan_cost": self.plan_cost,
-            "learned_facts": [logic.atom_str(a) for a in self.learned_facts],
+            "learned_facts": [logic.literal_str(a) for a in self.learned_facts],
             "shortcut": {"refined_steps": len(self.plan) + len(self.shortcut_dropped),
                          "dropped": [s.to_json() for s in self.shortcut_dropped]} if self.solved else None,
             "replans": self.replans,

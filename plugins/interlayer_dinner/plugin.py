@@ -1,4 +1,4 @@
-"""Registers the Dinner-N domain (BENCHMARKS.md section 2, the paper's Sec. V-C) and its pose generators."""
+"""Registers the Dinner-N domain (the paper's Sec. V-C; docs/dinner.md) and its pose generators."""
 from interlayer import hookimpl
 
 PARAMS = {"objects": 4, "handoff": False, "side_costs": False}

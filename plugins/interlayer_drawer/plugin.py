@@ -1,4 +1,4 @@
-"""Registers the Drawer (O) / (N) domain (BENCHMARKS.md section 2) and its pose generators."""
+"""Registers the Drawer (O) / (N) domain (the paper's Sec. V-A; docs/drawer.md) and its pose generators."""
 from interlayer import hookimpl
 
 PARAMS = {"variant": "O"}

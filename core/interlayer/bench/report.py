@@ -12,7 +12,7 @@ from pathlib import Path
 from . import db
 
 BEGIN, END = "<!-- BENCH-REPORT BEGIN -->", "<!-- BENCH-REPORT END -->"
-FAILED = ("unsolvable", "timeout", "error", "invalid", "killed")
+FAILED = ("unsolvable", "gave_up", "timeout", "error", "invalid", "killed")
 
 
 def _fmt(x, digits=1) -> str:
@@ -44,9 +44,12 @@ def _ordered(rows, groups):
     return sorted(keys + missing, key=lambda k: (k[0], position.get(k[:2], 1e9)))
 
 
-def _label(key, groups) -> str:
-    """The row's name, with the combination and the time limit when the database holds several."""
+def _label(key, groups, suite: bool = True) -> str:
+    """The row's name, with its suite when several suites have a row of that name, the combination
+    and the time limit when the database holds several."""
     label = key[1]
+    if suite and len({k[0] for k in groups if k[1] == key[1]}) > 1:
+        label = f"{key[0]}: {label}"
     if len({k[2] for k in groups}) > 1:
         label += f" [{key[2]}]"
     if len({k[3] for k in groups if k[0] == key[0]}) > 1:
@@ -78,7 +81,7 @@ def table1(runs, rows) -> list:
             for r in rs:
                 if r["status"] != "solved":
                     fails[r["status"]] += 1
-            lines.append([_label(key, groups), str(len(rs)), _fmt(100 * len(ok) / len(rs), 0), _fmt(p_solved, 0),
+            lines.append([_label(key, groups, suite=False), str(len(rs)), _fmt(100 * len(ok) / len(rs), 0), _fmt(p_solved, 0),
                           f"{_fmt(mean)} / {_fmt(_median(times))}", _fmt(p_mean, 0),
                           _fmt(mean / p_mean, 3) if mean is not None and p_mean else "-",
                           f"{_fmt(_median([r['plan_length'] for r in ok]), 0)} / "

@@ -63,11 +63,15 @@ def versions(host) -> dict:
 
 
 def _git_commit() -> str:
-    """The source checkout's commit (with '+' when it has local changes), or '' outside a git checkout."""
+    """The source checkout's commit (with '+' when it has local changes), or '' when not run from one: an
+    installed wheel in a folder of some other repository must not record that repository's commit."""
     import subprocess
     from pathlib import Path
 
-    here = str(Path(__file__).resolve().parent)
+    checkout = Path(__file__).resolve().parents[3]  # core/interlayer/bench/ -> the repository
+    if not (checkout / ".git").exists():
+        return ""
+    here = str(checkout)
     try:
         head = subprocess.run(["git", "-C", here, "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
                               timeout=10).stdout.strip()
