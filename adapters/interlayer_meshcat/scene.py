@@ -792,21 +792,28 @@ class Scene:
         return p
 
     # ----------------------------------------------------------------- live
-    def live(self, zmq_url: str | None = None, *, open_browser: bool = False) -> str:
+    def live(self, zmq_url: str | None = None, *, open_browser: bool = False, host: str = "127.0.0.1",
+             quiet: bool = False) -> str:
         """Mirror the scene into a live meshcat viewer and return its web URL.
 
-        Starts ``meshcat-server`` as a subprocess on 127.0.0.1 (ports from
-        7000/6000 upward) unless ``zmq_url`` names a running one. meshcat's
-        own stdout chatter (the URL) is captured; the URL is printed to
-        **stderr** only. The recorded state is replayed, later calls are
-        forwarded as they happen (and still recorded for write_html)."""
+        Starts a meshcat server (:mod:`.server`) listening on ``host`` only
+        (ports from 7000/6000 upward; it stops with this process) unless
+        ``zmq_url`` names a running one. meshcat's own stdout chatter is
+        captured; the URL is printed to **stderr** (unless ``quiet``). The
+        recorded state is replayed, later calls are forwarded as they happen
+        (and still recorded for write_html)."""
         if self._live_window is not None:
             return self._live_window.web_url
+        proc = None
+        if zmq_url is None:
+            from .server import start
+
+            proc, zmq_url, _ = start(host)
         buf = io.StringIO()
         with contextlib.redirect_stdout(buf):
             from meshcat.visualizer import ViewerWindow
-            win = ViewerWindow(zmq_url=zmq_url, start_server=zmq_url is None, server_args=[])
-        self._live_proc = getattr(win, "server_proc", None)
+            win = ViewerWindow(zmq_url=zmq_url, start_server=False, server_args=[])
+        self._live_proc = proc
         for cmd in self._window.log.commands():
             win.send(_Raw(cmd))
         for k, (text, _p, height) in self._labels.items():
@@ -818,7 +825,8 @@ class Scene:
         else:  # the live orbit centre is the world origin: fit around it
             pos, tgt = self._auto_camera(center=(0.0, 0.0, 0.0))
         self._send_live_camera(pos, tgt)
-        print(f"meshcat viewer: {win.web_url}", file=sys.stderr, flush=True)
+        if not quiet:
+            print(f"meshcat viewer: {win.web_url}", file=sys.stderr, flush=True)
         if open_browser:
             win.open()
         return win.web_url
@@ -826,6 +834,28 @@ class Scene:
     @property
     def url(self) -> str | None:
         return None if self._live_window is None else self._live_window.web_url
+
+    def replace_live(self, other: "Scene") -> str:
+        """Show this scene in ``other``'s live viewer instead of ``other`` (whose objects are deleted
+        there); the server, if ``other`` started it, is handed over. Returns the viewer's URL."""
+        other.clear()
+        zmq_url, proc = other.detach()
+        url = self.live(zmq_url, quiet=True)
+        self._live_proc = proc
+        return url
+
+    def detach(self):
+        """Stop mirroring into the live viewer and hand its server over (``(zmq_url, process)``: the
+        process is None when this scene did not start it), e.g. to the next scene shown there."""
+        win, self._live_window, self._window.live = self._live_window, None, None
+        proc, self._live_proc = self._live_proc, None
+        if win is None:
+            return None, proc
+        try:
+            win.zmq_socket.close(linger=0)
+        except Exception:
+            pass
+        return win.zmq_url, proc
 
     def close(self) -> None:
         """Detach the live viewer; stops the server if this scene started it."""

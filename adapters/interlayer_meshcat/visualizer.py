@@ -299,6 +299,10 @@ class MeshcatVisualizer:
         return write_page(path, html_page(title, body, _EXPLAIN_CSS))
 
     # -- interlayer plan --viz --------------------------------------------------------------
+    def stream(self, host: str = "127.0.0.1"):
+        """A live viewer that follows a run (``plan --viz``); see :class:`LiveRun`."""
+        return LiveRun(host)
+
     def live(self, result):
         """Show the solution (or the initial world) in a live meshcat viewer.
 
@@ -307,31 +311,92 @@ class MeshcatVisualizer:
         at once and the server is stopped when the process exits."""
         import atexit
 
-        problem = result.problem
-        traj = None
-        if result.solved and hasattr(problem.geometry, "trajectory_json"):
-            traj = json.loads(json.dumps(problem.geometry.trajectory_json(result.plan, result.refinement),
-                                         default=_json_default))
-        scene, _ = solution_scene(problem, traj, f"{problem.name}: refined plan")
+        scene = _result_scene(result)
         if scene is None:
             print("interlayer: this domain cannot draw itself; no live view", file=sys.stderr)
             return None
         scene.live()
         atexit.register(scene.close)
-        if sys.stdin is not None and sys.stdin.isatty() and sys.stderr.isatty() \
-                and not os.environ.get("INTERLAYER_VIZ_NO_WAIT"):
-            print("Viewer running; press Ctrl-C to stop it and continue.", file=sys.stderr, flush=True)
-            try:
-                import time
-
-                while True:
-                    time.sleep(3600)
-            except KeyboardInterrupt:
-                pass
+        if _interactive():
+            _until_ctrl_c("Viewer running; press Ctrl-C to stop it and continue.")
             scene.close()
         else:
             print("(not a terminal: the viewer stops when this command exits)", file=sys.stderr, flush=True)
         return scene
+
+
+class LiveRun:
+    """A trace listener that streams a run into one live meshcat viewer: the initial world once the
+    problem is built (``prepared``), the world of each failing refinement as it happens (obstructing
+    objects red, the object acted on orange; as on the explain page), then ``finish(result)``: the
+    refined plan's animation. Its server listens on ``host`` only and stops with ``close()`` (and with
+    this process, however it ends)."""
+
+    def __init__(self, host: str = "127.0.0.1"):
+        self.host, self.problem, self.scene, self.url = host, None, None, None
+
+    def prepared(self, problem):
+        self.problem = problem
+        scene, _ = solution_scene(problem, None, f"{problem.name}: initial world")
+        if scene is None:
+            print("interlayer: this domain cannot draw itself; no live view", file=sys.stderr)
+            return
+        import atexit
+
+        self.url = scene.live(host=self.host)
+        self.scene = scene
+        atexit.register(self.close)
+
+    def __call__(self, event):
+        if self.scene is not None and event["type"] == "failure":
+            self._show(failure_scene(self.problem, event))
+
+    def _show(self, scene):
+        if scene is not None:
+            scene.replace_live(self.scene)
+            self.scene = scene
+
+    def finish(self, result, wait: bool | None = None):
+        """The refined plan (or the last world shown, when not solved); then, in a terminal, wait for
+        Ctrl-C before the server stops (``wait`` overrides)."""
+        if self.scene is None:
+            return
+        if result.solved:
+            self._show(_result_scene(result))
+        if _interactive() if wait is None else wait:
+            _until_ctrl_c(f"Viewer running at {self.url}; press Ctrl-C to stop it.")
+        self.close()
+
+    def close(self):
+        scene, self.scene = self.scene, None
+        if scene is not None:
+            scene.close()
+
+
+def _result_scene(result):
+    """The refined plan's animation (the initial world when there is none); None if the domain cannot draw."""
+    problem, traj = result.problem, None
+    if result.solved and hasattr(problem.geometry, "trajectory_json"):
+        traj = json.loads(json.dumps(problem.geometry.trajectory_json(result.plan, result.refinement),
+                                     default=_json_default))
+    return solution_scene(problem, traj, f"{problem.name}: refined plan")[0]
+
+
+def _interactive() -> bool:
+    """A user at a terminal, who can stop a live viewer with Ctrl-C."""
+    return sys.stdin is not None and sys.stdin.isatty() and sys.stderr.isatty() \
+        and not os.environ.get("INTERLAYER_VIZ_NO_WAIT")
+
+
+def _until_ctrl_c(message: str) -> None:
+    import time
+
+    print(message, file=sys.stderr, flush=True)
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
 
 
 def _json_default(o):
@@ -616,6 +681,12 @@ class _Explainer:
             elif kind == "refined":
                 html.append(f'<div class="ev done">{t}<h3>All {e.get("steps")} steps refined</h3>'
                             "Every action has a motion plan; the task plan was validated.</div>")
+            elif kind == "shortened" and e.get("dropped"):
+                dropped = e["dropped"]
+                html.append(f'<div class="ev done">{t}<h3>Refined {e.get("refined")} steps, dropped {len(dropped)} as not '
+                            'needed</h3>Shortcutting: the plan still refines without '
+                            + ", ".join(f"<code>{escape(step_str(s))}</code>" for s in dropped)
+                            + f"; the final plan has {len(e.get('plan') or [])} step(s).</div>")
             elif kind == "end":
                 ok = e.get("status") == "solved"
                 html.append(f'<div class="ev {"done" if ok else "dead"}">{t}<h3>End: {escape(str(e.get("status")))}</h3>'

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import functools
+import logging
 import math
 import threading
 import zlib
@@ -26,8 +27,15 @@ _SEEDING = threading.RLock()
 def _ompl():
     from ompl import base as ob, geometric as og, util as ou
 
-    ou.setLogLevel(ou.LogLevel.LOG_WARN)  # OMPL logs to stdout at DEBUG level by default
+    ou.setLogLevel(_log_level(ou))
     return ob, og
+
+
+def _log_level(ou):
+    """OMPL logs to stdout at DEBUG level by default, and its errors ("Unable to sample any valid
+    states") are part of a search that goes on: shown only when the ``interlayer`` logger is verbose
+    (``interlayer plan -v``)."""
+    return ou.LogLevel.LOG_WARN if logging.getLogger("interlayer.ompl").isEnabledFor(logging.INFO) else ou.LogLevel.LOG_NONE
 
 
 class OMPLPlanner(MotionPlanner):
@@ -47,7 +55,7 @@ class OMPLPlanner(MotionPlanner):
         self.queries += 1
         ou.setLogLevel(ou.LogLevel.LOG_NONE)  # OMPL warns that reseeding after first use is not deterministic:
         ou.RNG.setSeed(zlib.crc32(f"{self.seed}:{self.queries}".encode()) or 1)  # it is, for RNGs made after it
-        ou.setLogLevel(ou.LogLevel.LOG_WARN)
+        ou.setLogLevel(_log_level(ou))
 
     def prepare(self):
         _ompl()

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import functools
 import importlib
+import importlib.util
 import logging
 import multiprocessing
 import subprocess
@@ -111,6 +112,8 @@ class UPTaskPlanner(TaskPlanner):
         return self._builders[key]
 
     def prepare(self, model):
+        if self.warm and self.engine.startswith("fast-downward"):
+            _spawn_warm_driver()
         with _UP_LOCK:
             self._prepare(model)
 
@@ -290,6 +293,24 @@ def _sparse_problem_class():
             return dict(self.explicit_initial_values)
 
     return SparseProblem
+
+
+def _spawn_warm_driver():
+    """Start Fast Downward's warm process before Unified-Planning is imported, so that both start up at
+    once (its script is found without importing up_fast_downward; ``_warm_driver`` waits for it)."""
+    from pathlib import Path
+
+    from . import warm
+
+    spec = importlib.util.find_spec("up_fast_downward")
+    if spec is None or not spec.submodule_search_locations:
+        return
+    script = Path(list(spec.submodule_search_locations)[0]) / "downward" / "fast-downward.py"
+    if script.exists():
+        try:
+            warm.driver_for(str(script)).spawn()
+        except OSError:  # _warm_driver tries again, and says why
+            pass
 
 
 def _warm_driver(engine):

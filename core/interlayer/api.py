@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -243,13 +244,18 @@ def prepare(source, overrides=None, host: PluginHost | None = None) -> Prepared:
                     translators_for(host, config), stats, cartesian, scene_issues(problem))
 
 
-def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), pddl_dir=None) -> Result:
+def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), pddl_dir=None,
+          origin: float | None = None) -> Result:
     """Solve a problem: ``source`` is a config path, a problem file, an output folder or a dict;
     ``overrides`` a list of ``"section.key=value"`` strings or a dict ``{"section.key": value}``.
-    ``pddl_dir``: write every task-planner call's problem there as PDDL.
+    ``pddl_dir``: write every task-planner call's problem there as PDDL. ``listeners``: functions
+    called with every trace event (one with a ``prepared(problem)`` method is first told the problem).
+    ``origin``: where the
+    result's wall time starts (``time.perf_counter()`` clock; default: now).
 
     Raises ``UserError`` for bad input, ``PluginFault`` for an exception in a plugin's code and
     ``Interrupted`` (a ``KeyboardInterrupt`` whose ``result`` holds the run so far) on Ctrl-C."""
+    origin = time.perf_counter() if origin is None else origin
     host = host or PluginHost()
     run = prepare(source, overrides, host)
     config, problem, model, stats = run.config, run.problem, run.model, run.stats
@@ -266,6 +272,9 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
         run.task.prepare(model)
     if hasattr(run.motion, "prepare"):
         run.motion.prepare()
+    for listener in listeners:  # e.g. a live viewer, which draws the problem before the run starts
+        if hasattr(listener, "prepared"):
+            listener.prepared(problem)
     trace = Trace([host.on_event, *listeners])
     for warning in [*host.warnings, *(sentence for kind, sentence in run.scene_issues if kind != "error")]:
         trace.emit("warning", message=warning)
@@ -278,27 +287,55 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
     try:
         result = layer.solve()
     except Interrupted as stop:
+        _clocked(stop.result, origin)
         stop.result.config = config
         raise
+    _clocked(result, origin)
     result.config = config
     return result
+
+
+def _clocked(result: Result, origin: float) -> None:
+    """The wait so far: start-up (imports, plugins, the scene and robot, the task planner's start) and planning."""
+    planning = result.times.get("total", 0.0)
+    result.origin = origin
+    result.wall = {"startup": max(0.0, time.perf_counter() - planning - origin), "planning": planning}
 
 
 def write_outputs(result: Result, out_dir) -> Path:
     """OUT_DIR: result.json, config.toml (with its seed), problem.json, trace.json, trajectory.json,
     written as one set (result.json last; a stale trajectory.json of an earlier run removed)."""
     out = Path(out_dir)
+    start = time.perf_counter()
     problem = result.problem
-    files = {"config.toml": cfg.to_toml(result.config),
-             "problem.json": _dumps({"name": problem.name, "source": problem.source, "objects": dict(problem.objects),
-                                     "init": sorted(" ".join(a) for a in problem.init), "goal": problem.goal}),
-             "trace.json": _dumps(result.trace.to_json()),
-             "trajectory.json": None,
-             "result.json": _dumps(result.to_json())}
-    if result.solved and hasattr(problem.geometry, "trajectory_json"):
-        files["trajectory.json"] = _dumps(problem.geometry.trajectory_json(result.plan, result.refinement))
-    runfolder.write_set(out, files)
+    trajectory = None
+    if result.solved and hasattr(problem.geometry, "trajectory_json"):  # e.g. timing by TOPP-RA
+        trajectory = problem.geometry.trajectory_json(result.plan, result.refinement)
+    exported = time.perf_counter()
+
+    def result_json():  # last, with the wait it completes
+        _account(result, start, exported)
+        return _dumps(result.to_json())
+
+    runfolder.write_set(out, {
+        "config.toml": cfg.to_toml(result.config),
+        "problem.json": _dumps({"name": problem.name, "source": problem.source, "objects": dict(problem.objects),
+                                "init": sorted(" ".join(a) for a in problem.init), "goal": problem.goal}),
+        "trace.json": _dumps(result.trace.to_json()),
+        "trajectory.json": None if trajectory is None else _dumps(trajectory),
+        "result.json": result_json})
     return out
+
+
+def _account(result: Result, start: float, exported: float) -> None:
+    """``result.wall`` completed: export, writing, the rest (between the parts) and the total so far."""
+    now = time.perf_counter()
+    wall = {k: v for k, v in result.wall.items() if k in ("startup", "planning")}
+    wall.update(export=exported - start, writing=now - exported)
+    if result.origin is not None:
+        wall["total"] = now - result.origin
+        wall["other"] = max(0.0, wall["total"] - sum(v for k, v in wall.items() if k != "total"))
+    result.wall = wall
 
 
 def _dumps(data) -> str:

@@ -64,6 +64,7 @@ class InterfaceLayer:
         self.replans = 0
         self.watch = ProgressWatch(model)
         self.plan: list = []
+        self.dropped: list = []  # steps the shortcutting dropped from the refined plan, in order
 
     # -- pieces -----------------------------------------------------------------------------
     def _time_left(self) -> float:
@@ -161,6 +162,7 @@ class InterfaceLayer:
         from .shortcut import shortcut
 
         def accepted(dropped, shorter):
+            self.dropped += dropped
             self.trace.emit("shortcut", dropped=plan_json(dropped), plan=plan_json(shorter))
 
         before = len(self.plan)
@@ -168,6 +170,8 @@ class InterfaceLayer:
                                        self.motion, world0, self._out_of_time, accepted, self.stats)
         self.stats.count("plan_length_before_shortcut", before)
         self.stats.count("plan_length", len(self.plan))
+        # one summary where the steps are counted: the log, result.json and the explain page print it
+        self.trace.emit("shortened", refined=before, dropped=plan_json(self.dropped), plan=plan_json(self.plan))
         return outcomes
 
     def _solved(self, init, world0, done):
@@ -203,7 +207,8 @@ class InterfaceLayer:
                       plan_cost=self.model.cost(self.plan) if status == "solved" else None,
                       learned_facts=list(self.learned), replans=self.replans, task_planner_calls=self.task_calls,
                       times=dict(self.stats.times), counts=dict(self.stats.counts), seed=self.settings.seed,
-                      refinement=refinement, trace=self.trace, problem=self.model.problem, model=self.model)
+                      refinement=refinement, trace=self.trace, problem=self.model.problem, model=self.model,
+                      shortcut_dropped=list(self.dropped) if status == "solved" else [])
         if status == "interrupted":
             raise Interrupted(result)
         return result

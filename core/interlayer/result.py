@@ -28,9 +28,12 @@ class Result:
     replans: int = 0
     task_planner_calls: int = 0
     times: dict = field(default_factory=dict)
+    wall: dict = field(default_factory=dict)  # the wait: startup, planning, export, writing, other, total (s)
+    origin: float | None = None  # where ``wall`` starts, on the perf_counter clock (the process's start for the CLI)
     counts: dict = field(default_factory=dict)
     seed: int = 0
     config: dict = field(default_factory=dict)
+    shortcut_dropped: list = field(default_factory=list)  # GroundSteps refined, then dropped as not needed
     refinement: Any = None  # domain trajectory (per step), when solved
     trace: Any = None
     problem: Any = None
@@ -47,9 +50,12 @@ class Result:
             "plan": [s.to_json() for s in self.plan],
             "plan_cost": self.plan_cost,
             "learned_facts": [logic.literal_str(a) for a in self.learned_facts],
+            "shortcut": {"refined_steps": len(self.plan) + len(self.shortcut_dropped),
+                         "dropped": [s.to_json() for s in self.shortcut_dropped]} if self.solved else None,
             "replans": self.replans,
             "task_planner_calls": self.task_planner_calls,
             "times": {k: round(v, 4) for k, v in self.times.items()},
+            "wall": {k: round(v, 4) for k, v in self.wall.items()},
             "counts": self.counts,
             "seed": self.seed,
             "config": self.config,

@@ -61,7 +61,8 @@ def signals_deferred():
 
 
 def write_set(out: Path, files: dict, last: str = "result.json") -> None:
-    """Write ``files`` (name -> text, or None to remove a stale file) into ``out`` as one set:
+    """Write ``files`` (name -> text, a function giving it when its turn comes, or None to remove a
+    stale file) into ``out`` as one set:
     each to a temporary name first, ``last`` removed first and renamed into place last, so a
     reader never sees ``last`` beside files of another run (a folder without it is unfinished)."""
     try:
@@ -74,7 +75,7 @@ def write_set(out: Path, files: dict, last: str = "result.json") -> None:
             for name, text in files.items():
                 if text is not None:
                     tmp[name] = out / f".{name}.tmp"
-                    tmp[name].write_text(text)
+                    tmp[name].write_text(text() if callable(text) else text)
             with contextlib.suppress(FileNotFoundError):
                 (out / last).unlink()
             for name in sorted(files, key=lambda n: n == last):

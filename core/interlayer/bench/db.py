@@ -22,6 +22,7 @@ CREATE TABLE IF NOT EXISTS runs (
     time_total REAL, wall_time REAL, times TEXT,        -- the planner's total, the process's wall time, the split (JSON)
     plan_length INTEGER, plan_cost REAL, replans INTEGER, task_planner_calls INTEGER,
     peak_memory_mb REAL, versions TEXT, host TEXT, started TEXT, finished TEXT,
+    wall TEXT,                                          -- the wait's parts: start-up, planning, export, ... (JSON)
     PRIMARY KEY (suite, row, combo, seed, time_limit)
 );
 CREATE TABLE IF NOT EXISTS rows (
@@ -40,8 +41,8 @@ KEY_COLUMNS = ("suite", "row", "combo", "seed", "time_limit")
 _WHERE_KEY = " AND ".join(f"{c} = ?" for c in KEY_COLUMNS)
 RUN_COLUMNS = ("suite", "row", "combo", "seed", "time_limit", "config", "overrides", "status", "reason", "time_total",
                "wall_time", "times", "plan_length", "plan_cost", "replans", "task_planner_calls", "peak_memory_mb",
-               "versions", "host", "started", "finished")
-JSON_COLUMNS = ("overrides", "times", "versions")
+               "versions", "host", "started", "finished", "wall")
+JSON_COLUMNS = ("overrides", "times", "versions", "wall")
 
 
 def connect(path, create: bool = True) -> sqlite3.Connection:
@@ -54,6 +55,8 @@ def connect(path, create: bool = True) -> sqlite3.Connection:
         con = sqlite3.connect(path, timeout=30, check_same_thread=False)  # a coordinator's threads claim runs
         con.execute("PRAGMA journal_mode=WAL")
         con.executescript(SCHEMA)
+        if "wall" not in {r[1] for r in con.execute("PRAGMA table_info(runs)")}:  # a database from before
+            con.execute("ALTER TABLE runs ADD COLUMN wall TEXT")
     except sqlite3.DatabaseError as exc:
         raise UserError(f"{path} is not an Interlayer results database ({exc}); give another --db path.") from None
     con.row_factory = sqlite3.Row

@@ -132,13 +132,26 @@ def split_table(runs) -> tuple[list, dict]:
         label = _label(key, groups)
         data[label] = {c: _mean([(r["times"] or {}).get(c, 0.0) for r in ok]) for c in cats}
         lines.append([label, *(_fmt(_median([(r["times"] or {}).get(c, 0.0) for r in ok]), 2) for c in cats),
-                      _fmt(_median([r["time_total"] for r in ok]), 2), *(_median_max([r[k] for r in ok]) for k in
-                      ("task_planner_calls", "replans")), _fmt(max((r["peak_memory_mb"] or 0) for r in ok), 0)])
+                      _fmt(_median([r["time_total"] for r in ok]), 2),
+                      *(_fmt(_median(xs), 2) if xs else "-" for xs in (_wall(ok, k) for k, _ in WAIT)),
+                      *(_median_max([r[k] for r in ok]) for k in ("task_planner_calls", "replans")),
+                      _fmt(max((r["peak_memory_mb"] or 0) for r in ok), 0)])
     if not lines:
         return [], data
-    return [("h2", "Where the time goes (medians over the solved runs, s) and the loop's effort"),
-            ("table", ["problem", *(c.replace("_", " ") for c in cats), "total", "task-planner calls (median / max)",
-                       "replans (median / max)", "peak memory (max, MB)"], lines)], data
+    return [("h2", "Where the time goes (medians over the solved runs, s): the planner's categories and total, then "
+                   "the wait around it (the run's process: start-up, trajectory export, writing; then the validator's "
+                   "process), and the loop's effort"),
+            ("table", ["problem", *(c.replace("_", " ") for c in cats), "total", *(h for _, h in WAIT),
+                       "task-planner calls (median / max)", "replans (median / max)", "peak memory (max, MB)"], lines)], data
+
+
+# The wait beside the planner's time: (key of the run's ``wall``, column heading)
+WAIT = (("startup", "start-up"), ("export", "export"), ("writing", "writing"), ("process", "process wall"),
+        ("validation", "validation process"))
+
+
+def _wall(runs, key) -> list:
+    return [r["wall"][key] for r in runs if (r.get("wall") or {}).get(key) is not None]
 
 
 def _median_max(xs) -> str:

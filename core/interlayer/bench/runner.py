@@ -98,9 +98,11 @@ def run_one(spec: dict) -> dict:
         res = _outcome(rc, out, err, over, hard, spec)
         if res.get("status") not in STATUSES:
             res = {"status": "error", "reason": f"the worker reported the unknown status {res.get('status')!r}"}
+        parts = {**(res.get("wall") or {}), "process": round(wall, 3)}  # the run's own split, as seen from here
         if res["status"] == "solved":  # counted only once the independent validator agrees
             vspec = {"validate": out_dir, "memory_mb": spec["memory_mb"]}
-            vrc, vout, verr, _, vover = _isolated(vspec, 60 + hard)
+            vrc, vout, verr, vwall, vover = _isolated(vspec, 60 + hard)
+            parts["validation"] = round(vwall, 3)
             check = _outcome(vrc, vout, verr, vover, 60 + hard, {**spec, **vspec})
             if check["status"] != "valid":
                 res["status"], res["reason"] = "invalid", f"the validator says: {check['reason']}"
@@ -110,7 +112,8 @@ def run_one(spec: dict) -> dict:
             "time_total": times.get("total"), "wall_time": round(wall, 3), "times": times,
             "plan_length": res.get("plan_length"), "plan_cost": res.get("plan_cost"), "replans": res.get("replans"),
             "task_planner_calls": res.get("task_planner_calls"), "peak_memory_mb": res.get("peak_memory_mb"),
-            "versions": res.get("versions"), "host": socket.gethostname(), "started": started, "finished": _now()}
+            "versions": res.get("versions"), "host": socket.gethostname(), "started": started, "finished": _now(),
+            "wall": parts}
 
 
 def plan_runs(suite: Suite, done: set, memory_mb, grace, keep_runs) -> list[dict]:

@@ -86,16 +86,17 @@ def plan(spec: dict) -> dict:
     from .. import api
     from ..errors import UserError
     from ..plugins import PluginHost
+    from ..trace import process_start
 
     try:
         host = PluginHost()
-        result = api.solve(spec["config"], overrides=spec["overrides"], host=host)
+        result = api.solve(spec["config"], overrides=spec["overrides"], host=host, origin=process_start())
         if spec.get("out"):
             api.write_outputs(result, spec["out"])
     except UserError as exc:
         return {"status": "error", "reason": str(exc)}
     data = result.to_json()
-    return {"status": result.status, "reason": result.reason, "times": data["times"],
+    return {"status": result.status, "reason": result.reason, "times": data["times"], "wall": data["wall"],
             "plan_length": len(result.plan) if result.solved else None,
             "plan_cost": result.plan_cost,
             "replans": result.replans, "task_planner_calls": result.task_planner_calls, "versions": versions(host)}
@@ -126,4 +127,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from ..cli import exit_after
+
+    exit_after(main)
