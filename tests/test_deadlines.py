@@ -22,11 +22,11 @@ HUNG = """
     @hookimpl
     def interlayer_register_pose_generators(registry):
         def sleeps(problem, step, world, rng):
-            time.sleep(120)  # in C: no Python instruction runs until it returns
+            time.sleep(30)  # in C: no Python instruction runs until it returns
             yield from ()
 
         def loops(problem, step, world, rng):
-            end = time.perf_counter() + 120  # busy in Python (bounded, so that a failing test ends)
+            end = time.perf_counter() + 30  # busy in Python (bounded, so that a failing test ends)
             while time.perf_counter() < end:
                 pass
             yield from ()
@@ -41,7 +41,7 @@ HUNG = """
 
             class NeverReturns(MotionPlanner):
                 def _plan(self, space, start, goal, is_valid, time_limit):
-                    time.sleep(120)
+                    time.sleep(30)
 
             return NeverReturns(name="hung:planner")
 
@@ -61,7 +61,7 @@ def test_a_busy_looping_generator_is_stopped_and_named(plugin_dir):
     result = api.solve(EXAMPLE, {"pose_generators.pick": "hung:loops", "planner.time_limit": 1.0})
     assert result.status == "timeout"
     assert "the plugin 'il_hung''s pose generator 'hung:loops' did not return: it was stopped" in result.reason
-    assert result.times["total"] < 60  # stopped, not waited for (the loop runs 120 s)
+    assert result.times["total"] < 20  # stopped, not waited for (the loop runs 30 s)
     assert result.trace.events[-1]["type"] == "end"
 
 
@@ -84,7 +84,7 @@ def test_a_call_stuck_in_a_sleep_ends_the_process_with_the_run_written(plugin_di
     assert data["status"] == result["status"] == "timeout" and names in result["reason"]
     events = json.loads((out / "trace.json").read_text())["events"]
     assert events[-1]["type"] == "end" and events[-1]["status"] == "timeout"
-    assert result["times"]["total"] < 60  # the call sleeps 120 s
+    assert result["times"]["total"] < 20  # the call sleeps 30 s
 
 
 def test_the_deadline_reaches_inside_a_collision_sweep(monkeypatch):
@@ -154,3 +154,22 @@ def test_a_pr2_run_gives_the_same_trajectory_on_a_slow_machine_and_a_fast_clock(
     assert loaded.status == "solved", loaded.reason
     assert [str(s) for s in loaded.plan] == [str(s) for s in idle.plan]
     assert _trajectory_digest(loaded) == _trajectory_digest(idle)
+
+
+def test_a_task_planner_timeout_ends_the_run_instead_of_a_dead_end(monkeypatch):
+    """A replan that reaches planner.task_timeout would otherwise be taken as a dead end: a path
+    decided by the clock. The run ends as a timeout, naming the limit."""
+    from interlayer_up import planner as up_planner
+
+    real, calls = up_planner._solve, []
+
+    def solve(*args):
+        calls.append(args)
+        return real(*args) if len(calls) == 1 else ("timeout", None, "the task planner timed out")
+
+    monkeypatch.setattr(up_planner, "_solve", solve)
+    result = api.solve(EXAMPLE, {"planner.task_timeout": 30.0, "planner.time_limit": 600.0})
+    assert len(calls) == 2
+    assert result.status == "timeout"
+    assert "the task planner's call #2 took longer than planner.task_timeout = 30 s" in result.reason
+    assert not [e for e in result.trace.events if e["type"] == "dead_end"]
