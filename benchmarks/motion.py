@@ -13,24 +13,22 @@ import statistics
 import sys
 import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 
-from interlayer import api
+from interlayer import api, shipped
 
-ROOT = Path(__file__).resolve().parents[1]
 PLANNERS = ["ompl:RRTConnect", "ompl:BITstar", "trajopt", "ik:cartesian+ompl:RRTConnect"]
 
 
 def problem_args(name):
     kind, _, n = name.partition(":")
     if kind == "gripper2d":
-        return ROOT / "examples/gripper2d.toml", [f"problem.obstructions={n or 1}"]
+        return shipped.find("examples", "gripper2d"), [f"problem.obstructions={n or 1}"]
     if kind == "cubby":
-        return ROOT / "examples/pr2_pick.toml", []
+        return shipped.find("examples", "pr2_pick"), []
     if kind == "clutter":
-        return ROOT / "examples/clutter.toml", [f"problem.objects={n or 25}"]
+        return shipped.find("examples", "clutter"), [f"problem.objects={n or 25}"]
     raise SystemExit(f"unknown problem {name!r}: use gripper2d:K, cubby or clutter:N")
 
 

@@ -6,6 +6,8 @@ dependency-free PNG decoder to judge whether a screenshot is blank.
   network services, SwiftShader GL, hard timeout).
 * :func:`dump_dom` / :func:`probe_page` - serialized DOM after load; a probe
   listing the resources the page fetched and the JS errors it raised.
+* :func:`paused_at` - a copy of a page whose animations stand still at a given
+  time: the test, not the clock, chooses the frame a screenshot shows.
 * :func:`read_png` - PNG -> ``uint8`` array ``(H, W, C)`` with zlib + numpy
   (Pillow is used instead when importable, it is faster).
 * :func:`is_blank` / :func:`dominant_fraction` / :func:`color_fraction` /
@@ -24,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["chromium_path", "screenshot", "dump_dom", "probe_page", "read_png", "is_blank", "dominant_fraction",
+__all__ = ["chromium_path", "screenshot", "dump_dom", "probe_page", "paused_at", "read_png", "is_blank", "dominant_fraction",
            "color_fraction", "diff_fraction", "CHROMIUM_MISSING"]
 
 CHROMIUM_MISSING = "chromium not installed: apt-get install chromium"
@@ -139,6 +141,50 @@ def probe_page(html_path, budget_ms: int = 2500, *, wait_ms: int = 1200) -> dict
     import html as _html
 
     return json.loads(_html.unescape(m.group(1)))
+
+
+def evaluate(html_path, js_function: str, *, wait_ms: int = 1500, budget_ms: int = 2500, size=(800, 600)):
+    """The JSON value ``js_function`` (JS source of a function of no argument) returns in a copy of
+    the page, called ``wait_ms`` after loading (within ``budget_ms`` of virtual time)."""
+    import html as _html
+    import json
+    import re
+
+    src = Path(html_path).read_text(encoding="utf-8")
+    tail = ('<script>setTimeout(function(){var pre=document.createElement("pre");pre.id="il-eval";'
+            f'pre.textContent=JSON.stringify(({js_function})());document.body.appendChild(pre);}}, {int(wait_ms)});</script>')
+    i = src.lower().rfind("</body>")
+    src = src[:i] + tail + src[i:] if i >= 0 else src + tail
+    with tempfile.TemporaryDirectory(prefix="il-eval-") as d:
+        copy = Path(d) / Path(html_path).name
+        copy.write_text(src, encoding="utf-8")
+        dom = dump_dom(copy, budget_ms, size=size)
+    m = re.search(r'<pre id="il-eval">(.*?)</pre>', dom, re.S)
+    if not m:
+        raise RuntimeError("evaluate: no result in the DOM (page did not finish loading?)")
+    return json.loads(_html.unescape(m.group(1)))
+
+
+# Pauses every mounted meshcat viewer's animation at a time given in seconds; polls (on the page's
+# clock, whatever its speed) until the viewers exist, as lazily mounted ones appear only when visible.
+_PAUSE_TAIL = """<script>(function(){var t=%r;function pause(){
+var found=false, els=document.querySelectorAll("*");
+for(var i=0;i<els.length;i++){var v=els[i].meshcatViewer; if(v){v.animator.pause(); v.animator.seek(t); found=true;}}
+if(!found) setTimeout(pause, 10);}
+pause();})();</script>"""
+
+
+def paused_at(html_path, seconds: float, out_path) -> Path:
+    """Write to ``out_path`` a copy of the page whose viewers' animations are paused at ``seconds``
+    (meshcat's ``Animator.pause`` and ``seek``): a screenshot of it shows that instant of the
+    animation however long the browser took to load and render, unlike a time budget."""
+    src = Path(html_path).read_text(encoding="utf-8")
+    i = src.lower().rfind("</body>")
+    tail = _PAUSE_TAIL % float(seconds)
+    src = src[:i] + tail + src[i:] if i >= 0 else src + tail
+    out_path = Path(out_path)
+    out_path.write_text(src, encoding="utf-8")
+    return out_path
 
 
 # ------------------------------------------------------------------ PNG decode

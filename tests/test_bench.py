@@ -163,6 +163,48 @@ def test_resume_after_a_killed_sweep_keeps_finished_runs_and_redoes_the_rest(tmp
     assert run_suite(load_suite(str(path)), db_path, progress=False)["ran"] == 0
 
 
+def test_two_coordinators_on_one_database_share_the_runs_and_make_none_twice(tmp_path):
+    path = suite_file(tmp_path, "shared", [("Gripper-2D", GRIPPER, [])], seeds="0-3", time_limit=30)
+    db_path = tmp_path / "r.sqlite"
+    cmd = [sys.executable, "-m", "interlayer.cli", "bench", "--suite", str(path), "--db", str(db_path), "--jobs", "1",
+           "--json"]
+    both = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    outs = [proc.communicate(timeout=600) for proc in both]
+    assert [proc.returncode for proc in both] == [0, 0], [err[-2000:] for _, err in outs]
+    summaries = [json.loads(out) for out, _ in outs]
+    assert sum(s["ran"] for s in summaries) == 4, summaries  # each run made once, by one of them
+    assert [(r["seed"], r["status"]) for r in runs(db_path)] == [(seed, "solved") for seed in range(4)]
+    with sqlite3.connect(db_path) as con:
+        assert con.execute("SELECT COUNT(*) FROM claims").fetchone()[0] == 0
+
+
+def test_a_running_coordinators_claim_is_left_to_it_and_a_gone_ones_retaken(tmp_path, capsys):
+    path = suite_file(tmp_path, "claimed", [("Gripper-2D", GRIPPER, [])], seeds="0-2", time_limit=30)
+    db_path = tmp_path / "r.sqlite"
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()
+    # a process that waits for its input stands for a coordinator that is running seed 0
+    running = subprocess.Popen([sys.executable, "-c", "import sys; sys.stdin.read()"], stdin=subprocess.PIPE)
+    host, alive = db.me()[0], running.pid
+    con = db.connect(db_path)
+    assert db.claim(con, ("claimed", "Gripper-2D", "default", 0, 30.0), (host, alive)) is None
+    assert db.claim(con, ("claimed", "Gripper-2D", "default", 1, 30.0), (host, gone.pid)) is None
+    # and seed 2 by a coordinator whose pid the running process took over since (it started after the claim)
+    assert db.claim(con, ("claimed", "Gripper-2D", "default", 2, 30.0), (host, alive)) is None
+    with con:
+        con.execute("UPDATE claims SET claimed = '2001-01-01T00:00:00+00:00' WHERE seed = 2")
+    con.close()
+    try:
+        summary = run_suite(load_suite(str(path)), db_path, jobs=1, progress=False)
+    finally:
+        running.communicate(b"")
+    assert summary["ran"] == 2 and summary["claimed_elsewhere"] == 1
+    assert [r["seed"] for r in runs(db_path)] == [1, 2]
+    assert f"1 run(s) left to the coordinator(s) that claimed them first (pid {alive} on {host})" in capsys.readouterr().err
+    with sqlite3.connect(db_path) as con:  # seed 0's claim is still its coordinator's; the others ended with their runs
+        assert con.execute("SELECT seed, pid FROM claims").fetchall() == [(0, alive)]
+
+
 @pytest.fixture(scope="module")
 def dask_db(tmp_path_factory):
     """A small sweep through a distributed.LocalCluster: Gripper-2D x two task planners x two seeds."""
@@ -217,3 +259,16 @@ def test_report_on_a_small_database(dask_db, tmp_path):
 def test_report_names_a_missing_database(tmp_path, capsys):
     assert main(["report", str(tmp_path / "none.sqlite"), "--out", str(tmp_path / "r")]) == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_rows_of_one_name_in_two_suites_are_told_apart_in_the_plots():
+    """The dinner suite repeats Table I's Dinner rows: the histogram and the time split name the suite
+    (issue 23: the histogram showed Dinner-2/4/6 twice under the same titles)."""
+    from interlayer.bench.report import _label
+
+    groups = {("table1", "Dinner-2", "default", 120.0): [], ("dinner", "Dinner-2", "default", 120.0): [],
+              ("table1", "Drawer (O)", "default", 120.0): []}
+    assert _label(("dinner", "Dinner-2", "default", 120.0), groups) == "dinner: Dinner-2"
+    assert _label(("table1", "Dinner-2", "default", 120.0), groups) == "table1: Dinner-2"
+    assert _label(("table1", "Drawer (O)", "default", 120.0), groups) == "Drawer (O)"
+    assert _label(("table1", "Dinner-2", "default", 120.0), groups, suite=False) == "Dinner-2"  # a suite's own table

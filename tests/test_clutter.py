@@ -1,4 +1,4 @@
-"""Clutter-N (BENCHMARKS.md section 2); the pybullet-planning JSON loader is tested in test_pbjson.py."""
+"""Clutter-N (docs/benchmarks.md); the pybullet-planning JSON loader is tested in test_pbjson.py."""
 from pathlib import Path
 
 import pytest
@@ -249,7 +249,7 @@ def test_front_put_downs_are_searched_within_reach_of_the_near_side():
     assert spots and max(x for x, _, _ in spots) <= reach and max(x for x, _, _ in spots) > reach - 0.1
 
 
-def test_moved_names_the_objects_a_step_picked_or_put_down():
+def test_moved_names_the_objects_a_step_picked_or_put_down_and_the_robots_moves():
     """What backjumping in TryRefine asks the PR2 geometry (refine.Refiner)."""
     from dataclasses import replace
 
@@ -261,6 +261,14 @@ def test_moved_names_the_objects_a_step_picked_or_put_down():
     assert problem.geometry.moved(world, world) == set()
     assert problem.geometry.moved(world, picked) == {a}
     assert problem.geometry.moved(world, moved) == {a, b}
+    # the robot's own moves count too (TryRefine's backjumping): its base, an arm, a gripper
+    from interlayer.refine import ROBOT_MOVED
+
+    x, y, yaw = world.base
+    assert problem.geometry.moved(world, replace(world, base=(x + 0.1, y, yaw))) == {ROBOT_MOVED}
+    arm = next(iter(world.arms))
+    assert problem.geometry.moved(world, world.with_arm(arm, [v + 0.1 for v in world.arms[arm]])) == {ROBOT_MOVED}
+    assert problem.geometry.moved(world, world.with_gripper(arm, "open")) == {ROBOT_MOVED}
 
 
 R040 = ROOT.parent / "shared" / "benchmarks" / "pybullet-planning-json" / "srivastava_table_r040.json"

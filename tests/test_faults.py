@@ -161,6 +161,152 @@ def test_a_failing_generator_and_translator_are_attributed(plugin_dir):
         api.solve(EXAMPLE, {"planner.translators": ["templates", "badgen:translate"]})
 
 
+WRONG_TYPES = """
+    from interlayer import hookimpl
+    from interlayer.motion import MotionPlanner
+    from interlayer.planning import TaskPlanner
+    from interlayer.plugin_api import Candidate, EpochState
+
+
+    def strings(problem, step, world, rng):
+        yield "a grasp"
+
+    def dicts(problem, step, world, rng):
+        yield {"waypoints": ()}
+
+    def words(problem, step, world, rng):
+        yield Candidate(((0.0, 0.1), ("left", "right")), {}, "words")
+
+    def number(problem, step, world, rng):
+        return 5
+
+    def numbered(problem, step, world, rng):
+        yield Candidate(((0.0, 0.1), (0.0, 0.2)), {}, 7)
+
+    class Remembers(EpochState):
+        def __call__(self, problem, step, world, rng):
+            return [b"a grasp"]
+
+
+    class Garbage(TaskPlanner):
+        def _plan(self, model, state, timeout):
+            return None
+
+    class Sentence:
+        def plan(self, model, state, timeout):
+            return "pick then place"
+
+    class Done(TaskPlanner):
+        def _plan(self, model, state, timeout):
+            return "done", [], "", 0
+
+
+    class Talks(MotionPlanner):
+        def plan(self, query, time_limit=None, straight=True):
+            return "a path"
+
+    class Flat(MotionPlanner):
+        searches = False
+
+        def _plan(self, space, start, goal, is_valid, time_limit):
+            return [0.0, 1.0]
+
+
+    @hookimpl
+    def interlayer_register_pose_generators(registry):
+        for f in (strings, dicts, words, number, numbered, Remembers):
+            registry.add("wrong:" + f.__name__, f, "misbehaves")
+
+    @hookimpl
+    def interlayer_register_failure_translators(registry):
+        registry.add("wrong:int", lambda failure, step, model: 5, "an int")
+        registry.add("wrong:text", lambda failure, step, model: {"Obstructs b2 gp_b1 b1"}, "strings")
+        registry.add("wrong:unknown", lambda failure, step, model: {("Nonsense", "b2")}, "an unknown predicate")
+        registry.add("wrong:arity", lambda failure, step, model: {("Obstructs", "b2")}, "too few arguments")
+
+    @hookimpl
+    def interlayer_register_task_planners(registry):
+        registry.add("wrong:none", lambda options: Garbage(name="wrong:none"), "its _plan returns None")
+        registry.add("wrong:sentence", lambda options: Sentence(), "returns a string")
+        registry.add("wrong:done", lambda options: Done(name="wrong:done"), "an unknown status")
+
+    @hookimpl
+    def interlayer_register_motion_planners(registry):
+        registry.add("wrong:talks", lambda options: Talks(name="wrong:talks"), "returns a string")
+        registry.add("wrong:flat", lambda options: Flat(name="wrong:flat"), "a path of numbers, not configurations")
+"""
+
+TRANSLATE = 'planner.translators=["templates", "wrong:{}"]'
+
+
+@pytest.mark.parametrize("setting, sentence", [
+    ("pose_generators.pick=wrong:strings", "its pose generator 'wrong:strings' failed: it yielded str 'a grasp', not a Candidate"),
+    ("pose_generators.pick=wrong:dicts", "its pose generator 'wrong:dicts' failed: it yielded dict {'waypoints': ()}, not a Candidate"),
+    ("pose_generators.pick=wrong:words", "its pose generator 'wrong:words' failed: it yielded a Candidate whose waypoint 1 "
+                                         "is tuple ('left', 'right'), not a configuration (numbers)"),
+    ("pose_generators.pick=wrong:number", "its pose generator 'wrong:number' failed: it returned int 5, not Candidates"),
+    ("pose_generators.pick=wrong:numbered", "its pose generator 'wrong:numbered' failed: it yielded a Candidate whose "
+                                            "label is int 7, not a string"),
+    ("pose_generators.pick=wrong:Remembers", "its pose generator 'wrong:Remembers' failed: it yielded bytes b'a grasp', "
+                                             "not a Candidate"),
+    (TRANSLATE.format("int"), "its failure translator 'wrong:int' failed: it returned int 5, not a set of atoms"),
+    (TRANSLATE.format("text"), "its failure translator 'wrong:text' failed: it returned str 'Obstructs b2 gp_b1 b1' "
+                               "among its facts, not an atom"),
+    (TRANSLATE.format("unknown"), "its failure translator 'wrong:unknown' failed: it returned the fact Nonsense b2, "
+                                  "whose predicate 'Nonsense' is not the domain's"),
+    (TRANSLATE.format("arity"), "its failure translator 'wrong:arity' failed: it returned the fact Obstructs b2, "
+                                "but 'Obstructs' takes 3 arguments"),
+    ("planner.task=wrong:none", "its task planner 'wrong:none' (plan) failed: its _plan returned NoneType None, "
+                                "not (status, steps, reason, cost)"),
+    ("planner.task=wrong:sentence", "its task planner 'wrong:sentence' (plan) failed: it returned str 'pick then place', "
+                                    "not a TaskPlanResult"),
+    ("planner.task=wrong:done", "its task planner 'wrong:done' (plan) failed: it returned the status 'done', "
+                                "not one of solved, unsolvable, timeout, error"),
+    ("planner.motion=wrong:talks", "its motion planner 'wrong:talks' (plan) failed: it returned str 'a path', not a MotionPlan"),
+    ("planner.motion=wrong:flat", "its motion planner 'wrong:flat' (plan) failed: it returned a path whose configuration 0 "
+                                  "is ndarray array(0.), not 3 numbers"),
+])
+def test_a_hooks_answer_of_the_wrong_type_is_its_plugins_fault(plugin_dir, capsys, monkeypatch, setting, sentence):
+    """Not "internal error", and not the fault of the component handed the answer (the domain's geometry)."""
+    plugin_dir("il_wrong", WRONG_TYPES)
+    monkeypatch.delenv("INTERLAYER_DEBUG", raising=False)
+    code, out, err = run_cli(capsys, "plan", EXAMPLE, "-q", "--set", setting)
+    errors = [line for line in err.splitlines() if line.startswith("error:")]
+    assert code == 1 and len(errors) == 1 and "Traceback" not in err, err
+    assert errors[0].startswith(f"error: the plugin 'il_wrong' failed: {sentence}"), errors[0]
+
+
+def test_a_domain_or_loader_returning_no_problem_is_its_plugins_fault(plugin_dir, capsys, tmp_path):
+    plugin_dir("il_noproblem", """
+        from interlayer import hookimpl
+
+        @hookimpl
+        def interlayer_register_domains(registry):
+            registry.add("noproblem", lambda params, seed: "a problem", "returns a string")
+
+        @hookimpl
+        def interlayer_load_problem(path, params, seed):
+            return {"objects": []} if path.suffix == ".noproblem" else None
+    """)
+    (tmp_path / "noproblem.toml").write_text('[problem]\ndomain = "noproblem"\n')
+    code, out, err = run_cli(capsys, "plan", str(tmp_path / "noproblem.toml"), "-q")
+    assert code == 1 and "error: the plugin 'il_noproblem' failed: its domain 'noproblem' failed: it returned str " \
+        "'a problem', not a Problem" in err
+    (tmp_path / "scene.noproblem").write_text("")
+    code, out, err = run_cli(capsys, "plan", str(tmp_path / "scene.noproblem"), "-q")
+    assert code == 1 and "error: the plugin 'il_noproblem' failed: its problem loader (interlayer_load_problem) " \
+        "failed: it returned dict {'objects': []}, not a Problem" in err
+
+
+def test_a_geometry_returning_no_step_outcome_is_the_domains_fault(monkeypatch, capsys):
+    from interlayer_gripper2d.world import Gripper2DGeometry
+
+    monkeypatch.setattr(Gripper2DGeometry, "refine_step", lambda self, step, world, candidate, motion: (True, world))
+    code, out, err = run_cli(capsys, "plan", EXAMPLE, "-q")
+    assert code == 1 and "error: the plugin 'gripper2d' failed: its domain 'gripper2d' geometry (refine_step) failed: " \
+        "it returned tuple (True, " in err and "not a StepOutcome" in err
+
+
 def test_validate_says_when_the_trajectory_was_not_rechecked(tmp_path, capsys, plugin_dir):
     """A domain without a trajectory validator: 'valid' must not claim the trajectory was re-checked."""
     plugin_dir("il_novalidate", """

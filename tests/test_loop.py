@@ -273,14 +273,14 @@ def test_a_generator_that_yields_nothing_is_named_with_its_step(host):
 
     empty.labels = {"take": "pose generator 'scripted:empty'"}
     result, _ = run(lambda *a: None, gen=empty, host=host)
-    assert result.status == "unsolvable"
+    assert result.status == "gave_up"
     assert "the pose generator 'scripted:empty' yielded no candidates for step 0 take(a, gp_a)" in result.reason
     assert result.reason.startswith("no progress in 3 resets in a row") and result.counts["resets"] == 3
 
 
 def test_a_failure_kind_without_translation_names_the_kind_and_the_learn_keys(host):
     result, _ = run(lambda item, label, world, n: Failure("unreachabel"), host=host)
-    assert result.status == "unsolvable"
+    assert result.status == "gave_up"
     assert ("the failure kind 'unreachabel' of the action 'take' has no translation (its learn keys: obstruction)"
             in result.reason)
 
@@ -291,7 +291,7 @@ def test_a_reset_cycle_repeating_the_same_state_is_stopped(host):
 
     result, _ = run(lambda item, label, world, n: Failure("obstruction", ("z",)), gen=fixed, host=host,
                     max_traj_count=1)
-    assert result.status == "unsolvable" and "the reset cycle repeats the same state" in result.reason
+    assert result.status == "gave_up" and "the reset cycle repeats the same state" in result.reason
     assert result.counts["resets"] == 3
 
 
@@ -321,7 +321,7 @@ def test_the_trace_size_is_limited(monkeypatch, host):
 
     monkeypatch.setattr(watchdog, "MAX_TRACE_EVENTS", 30)
     result, _ = run(lambda item, label, world, n: Failure("obstruction", ("z",)), host=host, time_limit=20)
-    assert result.status == "unsolvable" and "the trace reached 30 events without a solution" in result.reason
+    assert result.status == "gave_up" and "the trace reached 30 events without a solution" in result.reason
 
 
 def _refined(problem, model, plan):

@@ -308,13 +308,10 @@ def test_every_shared_file_loads_with_its_goals():
 
 @needs_shared
 def test_papers_scene_as_shipped_is_unsolvable_by_gripper_width(tmp_path):
-    import time
-
-    t0 = time.perf_counter()
     result = api.solve(str(SHARED / "srivastava_table.json"))
     assert result.status == "unsolvable"
     assert "0.100 m wide" in result.reason and "gripper opens only" in result.reason
-    assert time.perf_counter() - t0 < 30
+    assert result.task_planner_calls == 1 and not result.counts.get("refinement_attempts")  # before any motion
     api.write_outputs(result, tmp_path)
     assert "problem" in (tmp_path / "config.toml").read_text()  # rebuildable: problem.file is recorded
 

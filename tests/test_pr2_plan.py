@@ -1,7 +1,6 @@
 """End-to-end tests of the pr2 domain: examples/pr2_pick.toml with both goals, the learned
 obstruction, trajectory.json's shape, the validator, and the infeasible-width case."""
 import json
-import time
 from pathlib import Path
 
 import pytest
@@ -71,11 +70,10 @@ def test_trajectory_json_shape(hold_run):
 
 
 def test_width_infeasible_is_unsolvable_quickly():
-    t0 = time.perf_counter()
     result = solve(EXAMPLE, FAST + ["problem.target_radius=0.05"])
     assert result.status == "unsolvable"
     assert "0.100 m wide" in result.reason and "0.092 m" in result.reason and "no grasp exists" in result.reason
-    assert time.perf_counter() - t0 < 20
+    assert result.task_planner_calls == 1 and not result.counts.get("refinement_attempts")  # before any motion
 
 
 def test_unknown_problem_key_is_rejected():

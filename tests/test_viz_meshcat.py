@@ -163,3 +163,18 @@ def test_pages_render_in_chromium(pages, need_chromium, tmp_path):
     info = browser.probe_page(plan)
     assert info["errors"] == [] and [r for r in info["resources"] if not r.startswith("data:")] == []
     assert info["canvases"]
+
+
+def test_the_step_list_stands_beside_the_view_and_folds(pages, need_chromium):
+    """Issue 23: the step list covered the robot. It is beside the 3D view, and folding it gives the
+    view the window's width."""
+    plan, _ = pages
+    rects = browser.evaluate(plan, """function () {
+      function box(id) { var b = document.getElementById(id).getBoundingClientRect(); return [b.left, b.right, b.width]; }
+      var before = [box("caption"), box("plan-view")];
+      document.getElementById("fold").click();
+      return before.concat([box("caption"), box("plan-view")]);
+    }""", size=(1000, 700))
+    caption, view, folded_caption, folded_view = rects
+    assert caption[1] <= view[0] + 1 and view[2] > 550, rects          # side by side, the view the wider
+    assert folded_caption[2] <= 32 and folded_view[2] > 960, rects     # folded: the view takes the width

@@ -49,6 +49,7 @@ def html_page(title: str, body_html: str, extra_css: str = "", *, head_html: str
     if needs_viewer:
         viewer = f"<script>\n{_viewer.viewer_js()}\n</script>\n<script>\n{_viewer.BOOT_JS}\n</script>\n"
     css = (_BASE_CSS if base_css else "") + (extra_css or "")
+    body_html = _viewer.unique_blobs(body_html)
     return f"""<!DOCTYPE html>
 <html lang="en">
 <head>
@@ -95,10 +96,11 @@ def scene_embed(scene, width=480, height=360, *, element_id: str | None = None,
     w = f"{width}px" if isinstance(width, (int, float)) else str(width)
     h = f"{height}px" if isinstance(height, (int, float)) else str(height)
     cam = camera if camera is not None else scene.camera_or_auto()
-    call = _viewer.mount_call(eid, scene.packed_commands(), cam, controls=controls, fit=True, lazy=lazy)
+    blobs, refs = _viewer.shared_commands(scene.packed_commands())
+    call = _viewer.mount_call(eid, refs, cam, controls=controls, fit=True, lazy=lazy, labels=scene.labels())
     return (f'<div class="il-scene" {_viewer.EMBED_MARKER}="1" style="width:{w};height:{h}">'
             f'<div class="il-pane" id="{escape(eid)}" style="width:100%;height:100%"></div></div>\n'
-            f"<script>{call}</script>")
+            f"{blobs}<script>{call}</script>")
 
 
 def write_page(path, html: str) -> Path:

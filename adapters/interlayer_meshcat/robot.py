@@ -50,7 +50,8 @@ class PinocchioRobot:
         (pinocchio FK + ``updateGeometryPlacements``)."""
         q = np.asarray(q, dtype=np.float64)
         self._pin.updateGeometryPlacements(self.model, self._data, self.geom_model, self._gdata, q)
-        return {n: self._gdata.oMg[i].homogeneous.copy() for i, n in enumerate(self.names) if n is not None}
+        # .homogeneous is a fresh array (no copy needed)
+        return {n: M.homogeneous for n, M in zip(self.names, self._gdata.oMg) if n is not None}
 
     def frames(self, qs: Iterable) -> list[dict[str, np.ndarray]]:
         """One :meth:`robot_frame` per configuration (for ``Scene.animate``)."""

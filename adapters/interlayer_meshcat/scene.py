@@ -40,7 +40,6 @@ import numpy as np
 import umsgpack
 
 import meshcat
-import meshcat.animation as _ma
 import meshcat.geometry as _mg
 
 from . import _viewer
@@ -165,7 +164,40 @@ class _Object(_mg.Object):
     def lower(self):
         data = super().lower()
         data["object"]["matrix"] = _colmajor(self.matrix)
-        return data
+        return _content_uuids(data)
+
+
+def _content_uuids(data: dict) -> dict:
+    """Replace meshcat's random uuids by digests of what they name, so an object drawn alike in
+    several views of a page is the same bytes (pages store such a command once)."""
+    import hashlib
+    import uuid
+
+    ids: dict = {}
+
+    def sub(x):
+        if isinstance(x, str):
+            return ids.get(x, x)
+        if isinstance(x, dict):
+            return {k: sub(v) for k, v in x.items()}
+        if isinstance(x, list):
+            return [sub(v) for v in x]
+        return x
+
+    for kind in ("images", "textures", "geometries", "materials"):
+        entries = []
+        for e in data.get(kind, []):
+            e = sub(e)
+            body = umsgpack.packb({k: v for k, v in e.items() if k != "uuid"}, force_float_precision="single")
+            new = str(uuid.UUID(bytes=hashlib.sha1(body).digest()[:16]))
+            ids[e["uuid"]] = new
+            entries.append({**e, "uuid": new})
+        if kind in data:
+            data[kind] = entries
+    obj = sub(data["object"])
+    body = umsgpack.packb({k: v for k, v in obj.items() if k != "uuid"}, force_float_precision="single")
+    data["object"] = {**obj, "uuid": str(uuid.UUID(bytes=hashlib.sha1(body).digest()[:16]))}
+    return data
 
 
 class _TextTexture(_mg.Texture):
@@ -285,6 +317,7 @@ class Scene:
         self._info: dict[str, _Info] = {}
         self._poses: dict[str, np.ndarray] = {}
         self._highlighted: dict[str, dict[str, tuple]] = {}
+        self._labels: dict[str, list] = {}  # name -> [text, priority, height]
         self._camera = None            # (position, target) when set explicitly
         self._anim_frames: list[dict] = []
         self._has_animation = False
@@ -377,7 +410,7 @@ class Scene:
         V = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
         F = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
         if max_faces is not None and len(F) > max_faces:
-            V, F = simplify_mesh(V, F, max_faces)
+            V, F = _simplified(V, F, max_faces)
         rgba = as_rgba(color)
         geom = _mg.TriangularMeshGeometry(np.asarray(V, np.float32), np.asarray(F, np.uint32))
         obj = _Object(geom, self._material(rgba, flat=flat))
@@ -453,26 +486,32 @@ class Scene:
                       kind="LineSegments")
         return self._add(name, obj, "axes", [[0, 0, 0], [L, L, L]], None, pose)
 
-    def label(self, name: str, text: str, pose=None, height: float = 0.08) -> str:
-        """Text label: a camera-facing sprite (always drawn on top), black text,
-        centred horizontally on the pose origin with its baseline there.
-        ``height`` is roughly the cap height in metres; long texts shrink to
-        fit the viewer's 256-px canvas."""
-        font = 48
-        s = float(height) * 256.0 / font
-        tex = _TextTexture(str(text), font_size=font)
-        mat = _mg.GenericMaterial(map=tex, transparent=True, depthTest=False)
-        mat._type = "SpriteMaterial"
-        obj = _Object(_mg.Box([1, 1, 1]), mat, matrix=np.diag([s, s, 1.0, 1.0]), kind="Sprite")
-        data = obj.lower()
-        data["object"]["renderOrder"] = 10
-        # Material fields SpriteMaterial doesn't know are ignored by three.
-        path = _path(name)
-        self._send({"type": "set_object", "path": path, "object": data})
+    def label(self, name: str, text: str, pose=None, height: float = 0.08, *, priority: int = 0) -> str:
+        """Text label at ``pose`` (a point that moves with its parent group).
+
+        In pages it is an HTML tag that follows the point on screen at a legible
+        size whatever the scene's scale; where tags would overlap, the one of
+        higher ``priority`` (then the earlier) keeps its text and the other
+        becomes a dot showing its text on hover. In a live viewer it is a
+        camera-facing sprite whose cap height is about ``height`` metres."""
         name = _norm_name(name)
-        self._info[name] = _Info("label", np.array([[-s / 2, -s / 2, 0], [s / 2, s / 2, 0]]) * 0.5, None)
-        self.set_pose(name, pose)
+        self._labels[name] = [str(text), int(priority), float(height)]
+        self._info[name] = _Info("label", None, None)
+        self.set_pose(name, pose)      # the anchor: a transform node, no object in pages
+        if self._live_window is not None:
+            self._live_window.send(_Raw(_sprite(name, text, height)))
         return name
+
+    def label_priority(self, group: str, priority: int) -> None:
+        """Priority of the labels at or below ``group`` (see :meth:`label`)."""
+        group = _norm_name(group)
+        for k, lab in self._labels.items():
+            if k == group or k.startswith(group + "/"):
+                lab[1] = int(priority)
+
+    def labels(self) -> list:
+        """``[[path, text, priority], ...]``: the labels a page draws."""
+        return [[_path(k), t, p] for k, (t, p, _h) in self._labels.items()]
 
     # -------------------------------------------------------------- changes
     def set_pose(self, name: str, pose) -> None:
@@ -517,7 +556,7 @@ class Scene:
         """Remove an object or a whole group."""
         name = _norm_name(name)
         self._vis[_path(name)].delete()
-        for d in (self._info, self._poses, self._highlighted):
+        for d in (self._info, self._poses, self._highlighted, self._labels):
             for k in [k for k in d if k == name or k.startswith(name + "/")]:
                 del d[k]
 
@@ -525,6 +564,7 @@ class Scene:
         """Delete all user objects (keeps background/grid settings and camera)."""
         self._vis[ROOT].delete()
         self._info.clear()
+        self._labels.clear()
         self._poses.clear()
         self._highlighted.clear()
         self.clear_animation()
@@ -628,7 +668,8 @@ class Scene:
 
     # ------------------------------------------------------------ animation
     def animate(self, frames: Sequence[Mapping[str, object]], fps: float = 10.0, *,
-                autoplay: bool = True, loop: bool = True, repetitions: int | None = None) -> None:
+                autoplay: bool = True, loop: bool = True, repetitions: int | None = None,
+                tolerance: tuple[float, float] | None = None) -> None:
         """Replace the scene's animation by ``frames``: a list whose i-th entry
         maps names (objects or groups) to poses at time ``i/fps``. A name keeps
         its last given pose in later frames and its current static pose in
@@ -638,6 +679,11 @@ class Scene:
         once, then holds the last frame). The viewer's "Animations" folder in
         the control panel (top right) has play/pause/reset and a time
         scrubber; without autoplay the page shows frame 0.
+
+        ``tolerance=(metres, radians)`` keeps only the keyframes needed for the
+        page's interpolation to pass within that distance of every frame's
+        position and angle of its rotation (small pages for long runs); without
+        it every frame where a pose changes is kept.
 
         Only one animation exists per scene: to move a robot and objects
         together merge the dicts, e.g. ``[{**robot.robot_frame(q), "cup": T}
@@ -649,39 +695,53 @@ class Scene:
             return
         if len(frames) == 1:
             frames = frames * 2          # a zero-length clip breaks three's looping
+        n = len(frames)
+        col: dict = {}                   # raw key -> column (names normalised once, not per frame)
         names: list[str] = []
-        seen = set()
         for fr in frames:
             for k in fr:
-                k = _norm_name(k)
-                if k not in seen:
-                    seen.add(k)
-                    names.append(k)
-        n = len(frames)
-        norm_frames = [{_norm_name(k): as_pose(v) for k, v in fr.items()} for fr in frames]
-        anim = _ma.Animation(default_framerate=fps)
-        resolved = [dict() for _ in range(n)]
-        for name in names:
-            cur = self._poses.get(name, np.eye(4))
-            seq = []
-            for i in range(n):
-                v = norm_frames[i].get(name)
-                if v is not None:
-                    cur = v
-                seq.append(cur)
-                resolved[i][name] = cur
-            same_prev = [i > 0 and np.allclose(seq[i], seq[i - 1], atol=1e-9) for i in range(n)]
-            if all(same_prev[1:]) and np.allclose(seq[0], self._poses.get(name, np.eye(4)), atol=1e-9):
-                continue                  # never moves: no track
-            node = self._vis[_path(name)]
-            for i in range(n):
+                if k not in col:
+                    nk = _norm_name(k)
+                    if nk not in names:
+                        names.append(nk)
+                    col[k] = names.index(nk)
+        cur = [self._poses.get(nk, np.eye(4)) for nk in names]
+        rows = np.empty((n, len(names), 4, 4))
+        for i, fr in enumerate(frames):
+            for k, v in fr.items():
+                cur[col[k]] = v if isinstance(v, np.ndarray) and v.shape == (4, 4) else as_pose(v)
+            if cur:
+                rows[i] = cur
+        # the few frames bounds() looks at (the camera fit), not every frame
+        sample = sorted(set(range(0, n, max(1, n // 25))) | {n - 1})
+        self._anim_frames = [dict(zip(names, rows[i])) for i in sample]
+        changed = np.abs(np.diff(rows, axis=0)).max(axis=(2, 3)) > 1e-9 if n > 1 else np.zeros((0, len(names)), bool)
+        animations = []
+        moving = [j for j, name in enumerate(names)
+                  if changed[:, j].any() or not np.allclose(rows[0, j], self._poses.get(name, np.eye(4)), atol=1e-9)]
+        if tolerance is not None and moving:
+            kept = _keyframes(rows[:, moving].transpose(1, 0, 2, 3), *tolerance)
+        for c, j in enumerate(moving):     # names that never move have no track
+            name, seq = names[j], rows[:, j]
+            if tolerance is None:
                 # keep the ends of every constant run (exact hold + interpolation)
-                if i in (0, n - 1) or not same_prev[i] or not same_prev[i + 1]:
-                    anim.at_frame(node, i).set_transform(seq[i])
-        self._anim_frames = resolved
-        if not anim.clips:
+                moves = changed[:, j]
+                keep = np.zeros(n, bool)
+                keep[[0, n - 1]] = True
+                keep[1:] |= moves
+                keep[:-1] |= moves
+                idx = np.flatnonzero(keep)
+            else:
+                idx = kept[c]
+            pos = seq[idx, :3, 3]
+            quat = _quaternions(seq[idx, :3, :3])
+            times = _f32(idx)
+            animations.append({"path": _path(name), "clip": {"fps": fps, "name": "default", "tracks": [
+                {"name": ".position", "type": "vector3", "times": times, "values": _f32(pos)},
+                {"name": ".quaternion", "type": "quaternion", "times": times, "values": _f32(quat)}]}})
+        if not animations:
             self.clear_animation()
-            self._anim_frames = resolved
+            self._anim_frames = [dict(zip(names, rows[i])) for i in sample]
             return
         if loop:
             loop_mode, reps = _LOOP_REPEAT, float("inf")
@@ -689,7 +749,7 @@ class Scene:
             loop_mode, reps = _LOOP_ONCE, 1
         if repetitions is not None:
             loop_mode, reps = _LOOP_REPEAT, int(repetitions)
-        data = {"type": "set_animation", "path": "", "animations": anim.lower(),
+        data = {"type": "set_animation", "path": "", "animations": animations,
                 "options": {"play": bool(autoplay), "repetitions": reps, "loopMode": loop_mode,
                             "clampWhenFinished": True}}
         self._send(data)
@@ -719,7 +779,7 @@ class Scene:
 
     def html(self, title: str | None = None, *, controls: bool | None = None) -> str:
         """The self-contained HTML page as a string."""
-        return _viewer.standalone_html(self.packed_commands(), title=title or self.title,
+        return _viewer.standalone_html(self.packed_commands(), title=title or self.title, labels=self.labels(),
                                        camera=self.camera_or_auto(),
                                        controls=self.controls if controls is None else controls)
 
@@ -732,23 +792,32 @@ class Scene:
         return p
 
     # ----------------------------------------------------------------- live
-    def live(self, zmq_url: str | None = None, *, open_browser: bool = False) -> str:
+    def live(self, zmq_url: str | None = None, *, open_browser: bool = False, host: str = "127.0.0.1",
+             quiet: bool = False) -> str:
         """Mirror the scene into a live meshcat viewer and return its web URL.
 
-        Starts ``meshcat-server`` as a subprocess on 127.0.0.1 (ports from
-        7000/6000 upward) unless ``zmq_url`` names a running one. meshcat's
-        own stdout chatter (the URL) is captured; the URL is printed to
-        **stderr** only. The recorded state is replayed, later calls are
-        forwarded as they happen (and still recorded for write_html)."""
+        Starts a meshcat server (:mod:`.server`) listening on ``host`` only
+        (ports from 7000/6000 upward; it stops with this process) unless
+        ``zmq_url`` names a running one. meshcat's own stdout chatter is
+        captured; the URL is printed to **stderr** (unless ``quiet``). The
+        recorded state is replayed, later calls are forwarded as they happen
+        (and still recorded for write_html)."""
         if self._live_window is not None:
             return self._live_window.web_url
+        proc = None
+        if zmq_url is None:
+            from .server import start
+
+            proc, zmq_url, _ = start(host)
         buf = io.StringIO()
         with contextlib.redirect_stdout(buf):
             from meshcat.visualizer import ViewerWindow
-            win = ViewerWindow(zmq_url=zmq_url, start_server=zmq_url is None, server_args=[])
-        self._live_proc = getattr(win, "server_proc", None)
+            win = ViewerWindow(zmq_url=zmq_url, start_server=False, server_args=[])
+        self._live_proc = proc
         for cmd in self._window.log.commands():
             win.send(_Raw(cmd))
+        for k, (text, _p, height) in self._labels.items():
+            win.send(_Raw(_sprite(k, text, height)))
         self._live_window = win
         self._window.live = win
         if self._camera is not None:
@@ -756,7 +825,8 @@ class Scene:
         else:  # the live orbit centre is the world origin: fit around it
             pos, tgt = self._auto_camera(center=(0.0, 0.0, 0.0))
         self._send_live_camera(pos, tgt)
-        print(f"meshcat viewer: {win.web_url}", file=sys.stderr, flush=True)
+        if not quiet:
+            print(f"meshcat viewer: {win.web_url}", file=sys.stderr, flush=True)
         if open_browser:
             win.open()
         return win.web_url
@@ -764,6 +834,28 @@ class Scene:
     @property
     def url(self) -> str | None:
         return None if self._live_window is None else self._live_window.web_url
+
+    def replace_live(self, other: "Scene") -> str:
+        """Show this scene in ``other``'s live viewer instead of ``other`` (whose objects are deleted
+        there); the server, if ``other`` started it, is handed over. Returns the viewer's URL."""
+        other.clear()
+        zmq_url, proc = other.detach()
+        url = self.live(zmq_url, quiet=True)
+        self._live_proc = proc
+        return url
+
+    def detach(self):
+        """Stop mirroring into the live viewer and hand its server over (``(zmq_url, process)``: the
+        process is None when this scene did not start it), e.g. to the next scene shown there."""
+        win, self._live_window, self._window.live = self._live_window, None, None
+        proc, self._live_proc = self._live_proc, None
+        if win is None:
+            return None, proc
+        try:
+            win.zmq_socket.close(linger=0)
+        except Exception:
+            pass
+        return win.zmq_url, proc
 
     def close(self) -> None:
         """Detach the live viewer; stops the server if this scene started it."""
@@ -810,3 +902,112 @@ def _obj_bbox(path):
             if ln.startswith("v "):
                 vals.append([float(x) for x in ln.split()[1:4]])
     return mesh_bbox(vals) if vals else None
+
+
+def _sprite(name, text, height) -> dict:
+    """A live viewer's label: a camera-facing text sprite (always on top), cap height ~``height`` m."""
+    font = 48
+    sc = float(height) * 256.0 / font
+    mat = _mg.GenericMaterial(map=_TextTexture(str(text), font_size=font), transparent=True, depthTest=False)
+    mat._type = "SpriteMaterial"  # material fields SpriteMaterial doesn't know are ignored by three
+    data = _Object(_mg.Box([1, 1, 1]), mat, matrix=np.diag([sc, sc, 1.0, 1.0]), kind="Sprite").lower()
+    data["object"]["renderOrder"] = 10
+    return {"type": "set_object", "path": _path(name), "object": data}
+
+
+_SIMPLIFIED: dict = {}  # digest -> decimated (V, F): a page draws the same robot in every view
+
+
+def _simplified(V, F, max_faces):
+    import hashlib
+
+    key = (hashlib.sha1(V.tobytes() + F.tobytes()).hexdigest(), max_faces)
+    if key not in _SIMPLIFIED:
+        _SIMPLIFIED[key] = simplify_mesh(V, F, max_faces)
+    return _SIMPLIFIED[key]
+
+
+def _f32(a):
+    """A float32 array as msgpack's Float32Array extension (what meshcat's viewer decodes natively)."""
+    return umsgpack.Ext(0x17, np.ascontiguousarray(a, dtype="<f4").tobytes())
+
+
+def _quaternions(R):
+    """(N,3,3) rotation matrices -> (N,4) unit quaternions, three.js order (x, y, z, w)."""
+    R = np.asarray(R, dtype=np.float64)
+    t = R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2]
+    q = np.empty((len(R), 4))
+    # Shepperd: divide by the largest of 4w^2, 4x^2, 4y^2, 4z^2 for accuracy
+    d = np.stack([t, R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]], axis=1)
+    k = np.argmax(d, axis=1)
+    for case in range(4):
+        m = k == case
+        if not m.any():
+            continue
+        r = R[m]
+        if case == 0:
+            s = 2.0 * np.sqrt(np.maximum(1.0 + t[m], 1e-300))
+            q[m] = np.stack([(r[:, 2, 1] - r[:, 1, 2]) / s, (r[:, 0, 2] - r[:, 2, 0]) / s,
+                             (r[:, 1, 0] - r[:, 0, 1]) / s, 0.25 * s], axis=1)
+        else:
+            i = case - 1
+            j, kk = (i + 1) % 3, (i + 2) % 3
+            s = 2.0 * np.sqrt(np.maximum(1.0 + r[:, i, i] - r[:, j, j] - r[:, kk, kk], 1e-300))
+            v = np.empty((len(r), 4))
+            v[:, i] = 0.25 * s
+            v[:, j] = (r[:, j, i] + r[:, i, j]) / s
+            v[:, kk] = (r[:, kk, i] + r[:, i, kk]) / s
+            v[:, 3] = (r[:, kk, j] - r[:, j, kk]) / s
+            q[m] = v
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    # one hemisphere along the sequence (three slerps the short way anyway; this keeps error checks simple)
+    if len(q) > 1:
+        flip = np.cumprod(np.where(np.sum(q[1:] * q[:-1], axis=1) < 0, -1.0, 1.0))
+        q[1:] *= flip[:, None]
+    return q
+
+
+def _keyframes(seqs, tol_pos: float, tol_rot: float) -> list:
+    """For each of the ``seqs`` (M,N,4,4: M tracks of N frames), the indices of the frames to keep
+    so that interpolating between them (linear positions, slerp rotations, as three.js does) passes
+    within ``tol_pos`` metres and ``tol_rot`` radians of every frame. Each round splits every span
+    that strays at its worst frame (Douglas-Peucker, all spans of all tracks at once: the tracks
+    are laid end to end with both ends of each kept)."""
+    m, n = seqs.shape[:2]
+    seq = seqs.reshape(m * n, 4, 4)
+    P, Q = seq[:, :3, 3], _quaternions(seq[:, :3, :3])
+    keep = np.zeros((m, n), bool)
+    keep[:, [0, n - 1]] = True
+    if n > 2:  # and where a track starts or stops moving: holds are exact, and far fewer rounds
+        moves = np.abs(np.diff(seqs, axis=1)).max(axis=(2, 3)) > 1e-9
+        keep[:, 1:-1] |= moves[:, :-1] != moves[:, 1:]
+    keep = keep.reshape(-1)
+    active = ~keep                    # frames in spans not yet known to be within the tolerance
+    while True:
+        k, f = np.flatnonzero(keep), np.flatnonzero(active)
+        if not len(f):
+            return [np.flatnonzero(row) for row in keep.reshape(m, n)]
+        seg = np.searchsorted(k, f, side="right") - 1
+        a, b = k[seg], k[seg + 1]
+        u = ((f - a) / (b - a))[:, None]
+        err_p = np.linalg.norm(P[f] - (P[a] + u * (P[b] - P[a])), axis=1) / tol_pos
+        dot = np.sum(Q[a] * Q[b], axis=1)
+        qb = Q[b] * np.where(dot < 0, -1.0, 1.0)[:, None]
+        th = np.arccos(np.clip(np.abs(dot), 0.0, 1.0))[:, None]
+        small = th < 1e-9
+        sin_th = np.where(small, 1.0, np.sin(th))
+        Qi = (np.where(small, 1 - u, np.sin((1 - u) * th) / sin_th) * Q[a]
+              + np.where(small, u, np.sin(u * th) / sin_th) * qb)
+        Qi /= np.linalg.norm(Qi, axis=1, keepdims=True)
+        err_r = 2.0 * np.arccos(np.clip(np.abs(np.sum(Qi * Q[f], axis=1)), 0.0, 1.0)) / tol_rot
+        err = np.maximum(err_p, err_r)
+        # f is sorted, so each span's frames are one run of it: the worst frame of each run
+        starts = np.flatnonzero(np.r_[True, seg[1:] != seg[:-1]])
+        counts = np.diff(np.r_[starts, len(f)])
+        top = np.maximum.reduceat(err, starts)
+        split = top > 1.0
+        at = np.flatnonzero(err == np.repeat(top, counts))
+        first = at[np.r_[True, seg[at][1:] != seg[at][:-1]]]  # one frame per span
+        keep[f[first[split]]] = True
+        active[f] = np.repeat(split, counts)            # only the spans just split are looked at again
+        active[keep] = False

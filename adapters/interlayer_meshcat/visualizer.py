@@ -32,7 +32,8 @@ import sys
 from html import escape
 from pathlib import Path
 
-FPS = 20
+FPS = 10  # frames drawn per second of motion; the page interpolates between them
+KEYFRAME_TOLERANCE = (0.002, 0.01)  # m, rad: the page interpolates between keyframes this close to every frame
 MAX_FAILURE_VIEWS = 40  # 3D views on one explanation page (each a lazy WebGL context)
 OBSTRUCTING = (0.90, 0.12, 0.12, 1.0)
 ACTED_ON = (1.0, 0.55, 0.0, 1.0)
@@ -128,7 +129,7 @@ def solution_scene(run_or_problem, trajectory, title="plan"):
                 starts.append((st, i / FPS))
             clean.append({k: v for k, v in f.items() if not str(k).startswith("@")})
         if clean:
-            scene.animate(clean, fps=FPS, autoplay=True, loop=True)
+            scene.animate(clean, fps=FPS, autoplay=True, loop=True, tolerance=KEYFRAME_TOLERANCE)
         starts.append((None, len(clean) / FPS))
     _camera(scene)
     return scene, starts
@@ -148,6 +149,8 @@ def failure_scene(problem, event):
             _recolor(scene, names.get(a, a), ACTED_ON)
     for o in obstructing:
         _recolor(scene, names.get(o, o), OBSTRUCTING)
+    for o in obstructing + acted[:1]:  # their tags win where tags would overlap
+        scene.label_priority(o, 3)
     focus = [names.get(o, o) for o in obstructing + acted[:1]]
     if not _focus_camera(scene, focus):
         _camera(scene)
@@ -199,15 +202,30 @@ def _action_args(action: str) -> list[str]:
 # ------------------------------------------------------------------- pages
 _PLAN_CSS = """
 html, body { margin: 0; padding: 0; height: 100%; overflow: hidden; }
-body { margin: 0; }
-.il-scene { border: none; border-radius: 0; display: block; }
-#caption { position: absolute; left: 12px; top: 12px; max-width: 46%; background: rgba(255,255,255,0.88);
-           border: 1px solid #ccd3dc; border-radius: 6px; padding: 8px 12px; font-size: 13px; z-index: 5; }
-#caption h1 { font-size: 15px; margin: 0 0 4px 0; }
+body { margin: 0; display: flex; }
+/* the step list beside the 3D view, never over it; folding it gives the view the whole window */
+#caption { flex: 0 0 auto; width: min(340px, 36vw); box-sizing: border-box; height: 100vh; overflow: auto;
+           background: #fafbfc; border-right: 1px solid #ccd3dc; padding: 10px 12px 10px 12px; font-size: 13px; position: relative; }
+#caption.folded { width: 30px; padding: 0; overflow: hidden; }
+#caption.folded > :not(#fold) { display: none; }
+#fold { position: absolute; right: 4px; top: 6px; border: 1px solid #ccd3dc; background: #fff; border-radius: 4px;
+        cursor: pointer; font-size: 12px; padding: 0 5px; line-height: 18px; }
+#caption h1 { font-size: 15px; margin: 0 22px 4px 0; }
 #caption ol { margin: 4px 0 0 0; padding-left: 22px; }
 #caption li { font-family: ui-monospace, Menlo, Consolas, monospace; font-size: 12px; padding: 1px 3px; border-radius: 3px; }
 #caption li.now { background: #ffe08a; }
 #caption .note { color: #5a6470; font-size: 12px; }
+#view { flex: 1 1 auto; min-width: 0; height: 100vh; position: relative; }
+#view .il-scene { border: none; border-radius: 0; display: block; position: absolute; left: 0; top: 0; }
+"""
+
+_FOLD_JS = """
+document.getElementById("fold").onclick = function () {
+  var c = document.getElementById("caption"), folded = c.classList.toggle("folded");
+  this.textContent = folded ? "\u00bb" : "\u00ab";
+  this.title = folded ? "show the steps" : "hide the steps";
+  window.dispatchEvent(new Event("resize"));  // the 3D view takes the freed width
+};
 """
 
 _CAPTION_JS = """
@@ -244,7 +262,7 @@ class MeshcatVisualizer:
         solved = run.result.get("status") == "solved"
         title = f"{run.name}: refined plan" if solved else f"{run.name}: not solved"
         scene, starts = solution_scene(run, run.trajectory if solved else None, title)
-        cap = [f"<h1>{escape(title)}</h1>"]
+        cap = ['<button id="fold" title="hide the steps">&laquo;</button>', f"<h1>{escape(title)}</h1>"]
         if solved:
             cap.append(f'<div class="note">{len(plan)} step(s), solved in {_secs(run.result.get("times", {}).get("total"))}; '
                        f'{run.result.get("replans", 0)} replan(s). The current step is highlighted.</div>')
@@ -256,11 +274,11 @@ class MeshcatVisualizer:
         if scene is None:
             why = run.problem_error or "the domain has no draw_scene"
             cap.append(f'<div class="note">No 3D view: {escape(why)}</div>')
-            body = f'<div id="caption">{"".join(cap)}</div>'
+            body = f'<div id="caption">{"".join(cap)}</div><script>{_FOLD_JS}</script>'
         else:
-            body = (f'<div id="caption">{"".join(cap)}</div>'
-                    + scene_embed(scene, "100vw", "100vh", element_id="plan-view", lazy=False)
-                    + f"<script>{_CAPTION_JS % json.dumps(starts)}</script>")
+            body = (f'<div id="caption">{"".join(cap)}</div><div id="view">'
+                    + scene_embed(scene, "100%", "100%", element_id="plan-view", lazy=False)
+                    + f"</div><script>{_FOLD_JS}{_CAPTION_JS % json.dumps(starts)}</script>")
         return write_page(path, html_page(title, body, _PLAN_CSS))
 
     write_html = plan_page  # the name in the hookspec's docstring
@@ -276,6 +294,10 @@ class MeshcatVisualizer:
         return write_page(path, html_page(title, body, _EXPLAIN_CSS))
 
     # -- interlayer plan --viz --------------------------------------------------------------
+    def stream(self, host: str = "127.0.0.1"):
+        """A live viewer that follows a run (``plan --viz``); see :class:`LiveRun`."""
+        return LiveRun(host)
+
     def live(self, result):
         """Show the solution (or the initial world) in a live meshcat viewer.
 
@@ -284,31 +306,92 @@ class MeshcatVisualizer:
         at once and the server is stopped when the process exits."""
         import atexit
 
-        problem = result.problem
-        traj = None
-        if result.solved and hasattr(problem.geometry, "trajectory_json"):
-            traj = json.loads(json.dumps(problem.geometry.trajectory_json(result.plan, result.refinement),
-                                         default=_json_default))
-        scene, _ = solution_scene(problem, traj, f"{problem.name}: refined plan")
+        scene = _result_scene(result)
         if scene is None:
             print("interlayer: this domain cannot draw itself; no live view", file=sys.stderr)
             return None
         scene.live()
         atexit.register(scene.close)
-        if sys.stdin is not None and sys.stdin.isatty() and sys.stderr.isatty() \
-                and not os.environ.get("INTERLAYER_VIZ_NO_WAIT"):
-            print("Viewer running; press Ctrl-C to stop it and continue.", file=sys.stderr, flush=True)
-            try:
-                import time
-
-                while True:
-                    time.sleep(3600)
-            except KeyboardInterrupt:
-                pass
+        if _interactive():
+            _until_ctrl_c("Viewer running; press Ctrl-C to stop it and continue.")
             scene.close()
         else:
             print("(not a terminal: the viewer stops when this command exits)", file=sys.stderr, flush=True)
         return scene
+
+
+class LiveRun:
+    """A trace listener that streams a run into one live meshcat viewer: the initial world once the
+    problem is built (``prepared``), the world of each failing refinement as it happens (obstructing
+    objects red, the object acted on orange; as on the explain page), then ``finish(result)``: the
+    refined plan's animation. Its server listens on ``host`` only and stops with ``close()`` (and with
+    this process, however it ends)."""
+
+    def __init__(self, host: str = "127.0.0.1"):
+        self.host, self.problem, self.scene, self.url = host, None, None, None
+
+    def prepared(self, problem):
+        self.problem = problem
+        scene, _ = solution_scene(problem, None, f"{problem.name}: initial world")
+        if scene is None:
+            print("interlayer: this domain cannot draw itself; no live view", file=sys.stderr)
+            return
+        import atexit
+
+        self.url = scene.live(host=self.host)
+        self.scene = scene
+        atexit.register(self.close)
+
+    def __call__(self, event):
+        if self.scene is not None and event["type"] == "failure":
+            self._show(failure_scene(self.problem, event))
+
+    def _show(self, scene):
+        if scene is not None:
+            scene.replace_live(self.scene)
+            self.scene = scene
+
+    def finish(self, result, wait: bool | None = None):
+        """The refined plan (or the last world shown, when not solved); then, in a terminal, wait for
+        Ctrl-C before the server stops (``wait`` overrides)."""
+        if self.scene is None:
+            return
+        if result.solved:
+            self._show(_result_scene(result))
+        if _interactive() if wait is None else wait:
+            _until_ctrl_c(f"Viewer running at {self.url}; press Ctrl-C to stop it.")
+        self.close()
+
+    def close(self):
+        scene, self.scene = self.scene, None
+        if scene is not None:
+            scene.close()
+
+
+def _result_scene(result):
+    """The refined plan's animation (the initial world when there is none); None if the domain cannot draw."""
+    problem, traj = result.problem, None
+    if result.solved and hasattr(problem.geometry, "trajectory_json"):
+        traj = json.loads(json.dumps(problem.geometry.trajectory_json(result.plan, result.refinement),
+                                     default=_json_default))
+    return solution_scene(problem, traj, f"{problem.name}: refined plan")[0]
+
+
+def _interactive() -> bool:
+    """A user at a terminal, who can stop a live viewer with Ctrl-C."""
+    return sys.stdin is not None and sys.stdin.isatty() and sys.stderr.isatty() \
+        and not os.environ.get("INTERLAYER_VIZ_NO_WAIT")
+
+
+def _until_ctrl_c(message: str) -> None:
+    import time
+
+    print(message, file=sys.stderr, flush=True)
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
 
 
 def _json_default(o):
@@ -421,11 +504,13 @@ class _Explainer:
         self.views = 0
 
     def render(self, title) -> str:
+        from interlayer.result import MEANING
+
         r = self.run.result
         status = r.get("status", "?")
-        cls = "ok" if status == "solved" else "bad"
+        cls = "ok" if status == "solved" else "warn" if status in ("gave_up", "timeout", "interrupted") else "bad"
         out = [f"<h1>{escape(title)}</h1>",
-               f'<p><span class="badge {cls}">{escape(status)}</span> '
+               f'<p><span class="badge {cls}" title="{escape(MEANING.get(status, status))}">{escape(status)}</span> '
                f'{escape(r.get("reason") or "")} <span class="muted">{escape(str(self.run.dir))}</span></p>']
         out.append(self.summary())
         out.append(self.timeline_section())
@@ -589,6 +674,12 @@ class _Explainer:
             elif kind == "refined":
                 html.append(f'<div class="ev done">{t}<h3>All {e.get("steps")} steps refined</h3>'
                             "Every action has a motion plan; the task plan was validated.</div>")
+            elif kind == "shortened" and e.get("dropped"):
+                dropped = e["dropped"]
+                html.append(f'<div class="ev done">{t}<h3>Refined {e.get("refined")} steps, dropped {len(dropped)} as not '
+                            'needed</h3>Shortcutting: the plan still refines without '
+                            + ", ".join(f"<code>{escape(step_str(s))}</code>" for s in dropped)
+                            + f"; the final plan has {len(e.get('plan') or [])} step(s).</div>")
             elif kind == "end":
                 ok = e.get("status") == "solved"
                 html.append(f'<div class="ev {"done" if ok else "dead"}">{t}<h3>End: {escape(str(e.get("status")))}</h3>'
@@ -637,7 +728,7 @@ class _Explainer:
         if objs:
             text.append("<div>obstructed by: " + ", ".join(f'<b style="color:#c9302c">{escape(o)}</b>' for o in objs) + "</div>")
         text.append("<div>learned: " + (", ".join(f'<span class="fact">{escape(x)}</span>' for x in facts) or "nothing")
-                    + "</div><div class=muted>The task planner now plans from the state before this step plus these facts.</div>")
+                    + "</div><div class=muted>The task planner now plans from the state before this step with these facts (a (not ...) fact is deleted).</div>")
         view = ""
         if self.views < MAX_FAILURE_VIEWS and self.run.problem is not None:
             scene = failure_scene(self.run.problem, e)

@@ -2,7 +2,9 @@
 from __future__ import annotations
 
 import functools
+import logging
 import math
+import threading
 import zlib
 
 import numpy as np
@@ -24,13 +26,25 @@ CHECKS_PER_SECOND = 10000
 # condition above, the validity check) while solve() holds the GIL, so they keep OMPL's own clock,
 # cut to the run's time left: their results depend on the machine's load (and on thread timing anyway).
 THREADED = {"PRM", "PRMstar", "LazyPRM", "LazyPRMstar", "SPARS", "SPARStwo"}
+# OMPL seeds every RNG it makes (planners', samplers', the simplifier's) from one process-wide
+# generator, and its Python bindings reach none of them (RNG.setLocalSeed is for RNGs one holds): a
+# query reseeds that generator and makes its RNGs under this lock, so threads' queries do not draw
+# each other's seeds. Reentrant: a planner built on this one may plan inside its own query.
+_SEEDING = threading.RLock()
 
 
 def _ompl():
     from ompl import base as ob, geometric as og, util as ou
 
-    ou.setLogLevel(ou.LogLevel.LOG_WARN)  # OMPL logs to stdout at DEBUG level by default
+    ou.setLogLevel(_log_level(ou))
     return ob, og
+
+
+def _log_level(ou):
+    """OMPL logs to stdout at DEBUG level by default, and its errors ("Unable to sample any valid
+    states") are part of a search that goes on: shown only when the ``interlayer`` logger is verbose
+    (``interlayer plan -v``)."""
+    return ou.LogLevel.LOG_WARN if logging.getLogger("interlayer.ompl").isEnabledFor(logging.INFO) else ou.LogLevel.LOG_NONE
 
 
 class OMPLPlanner(MotionPlanner):
@@ -53,7 +67,7 @@ class OMPLPlanner(MotionPlanner):
         self.queries += 1
         ou.setLogLevel(ou.LogLevel.LOG_NONE)  # OMPL warns that reseeding after first use is not deterministic:
         ou.RNG.setSeed(zlib.crc32(f"{self.seed}:{self.queries}".encode()) or 1)  # it is, for RNGs made after it
-        ou.setLogLevel(ou.LogLevel.LOG_WARN)
+        ou.setLogLevel(_log_level(ou))
 
     def prepare(self):
         _ompl()
@@ -84,6 +98,10 @@ class OMPLPlanner(MotionPlanner):
     def _plan(self, space, start, goal, is_valid, time_limit, clear=None):
         """``clear``: the query's certificate (MotionQuery.certificate); with it, edges are checked a
         block of points at a time (``points_valid``) instead of by OMPL, state by state."""
+        with _SEEDING:
+            return self._query(space, start, goal, is_valid, time_limit, clear)
+
+    def _query(self, space, start, goal, is_valid, time_limit, clear):
         ob, og = _ompl()
         ompl_space = self._space(space)
         se2 = space.kind == "se2"

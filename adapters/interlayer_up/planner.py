@@ -1,14 +1,15 @@
 """A TaskPlanner backed by any Unified-Planning OneshotPlanner engine."""
 from __future__ import annotations
 
-import contextlib
 import functools
 import importlib
+import importlib.util
 import logging
 import multiprocessing
-import os
+import subprocess
 import sys
 import tempfile
+import threading
 import time
 import types
 from dataclasses import dataclass, field
@@ -28,6 +29,13 @@ log = logging.getLogger("interlayer")
 # Engines that ignore UP's timeout: run them in a child process we can stop.
 UNBOUNDED_ENGINES = ("pyperplan", "pyperplan-opt")
 
+# Unified-Planning's import and our run_command hook are installed once per process, by one thread.
+_setup_lock = threading.Lock()
+# UP's expressions live in one process-wide environment whose expression manager is not safe for
+# threads (up-fast-downward's optimal engine builds in the global one whatever the problem's), so UP's
+# work runs under this lock, released while an engine's own process runs (_run_command_in_folder).
+_UP_LOCK = threading.Lock()
+
 
 def _quiet_environment():
     _import_up()
@@ -45,6 +53,12 @@ def _import_up():
     never ask for. While UP loads, a stand-in module answers; it imports the real one on first use."""
     if "unified_planning.shortcuts" in sys.modules:
         return
+    with _setup_lock:
+        if "unified_planning.shortcuts" not in sys.modules:
+            _import_up_without_configspace()
+
+
+def _import_up_without_configspace():
     if "ConfigSpace" in sys.modules:  # already paid for
         import unified_planning.shortcuts  # noqa: F401
         return
@@ -98,6 +112,12 @@ class UPTaskPlanner(TaskPlanner):
         return self._builders[key]
 
     def prepare(self, model):
+        if self.warm and self.engine.startswith("fast-downward"):
+            _spawn_warm_driver()
+        with _UP_LOCK:
+            self._prepare(model)
+
+    def _prepare(self, model):
         env = _quiet_environment()
         from unified_planning.engines.pddl_planner import PDDLPlanner
 
@@ -110,11 +130,11 @@ class UPTaskPlanner(TaskPlanner):
                     _warm_driver(engine)  # and its warm process
 
     def _plan(self, model, state, timeout):
-        _quiet_environment()
-        builder = self._builder(model)
-        problem = _settled(builder.problem_for(state))
-        if self.pddl_dir is not None:
-            _dump_pddl(problem, self.pddl_dir, self.calls)
+        with _UP_LOCK:
+            _quiet_environment()
+            problem = _settled(self._builder(model).problem_for(state))
+            if self.pddl_dir is not None:
+                _dump_pddl(problem, self.pddl_dir, self.calls)
         deadline = time.perf_counter() + timeout
         for params in (self.params, *self.fallbacks):
             left = deadline - time.perf_counter()
@@ -129,7 +149,8 @@ class UPTaskPlanner(TaskPlanner):
         if status != "solved":
             return status, [], reason, None
         if self.validate == "every":
-            why = _up_validate(problem, plan)
+            with _UP_LOCK:
+                why = _up_validate(problem, plan)
             if why:
                 return "error", [], why, None
         steps = [(ai.action.name, [p.object().name for p in ai.actual_parameters]) for ai in plan.actions]
@@ -144,6 +165,10 @@ class UPTaskPlanner(TaskPlanner):
         return self.library_check(model, state, plan)
 
     def library_check(self, model, state, plan) -> str:
+        with _UP_LOCK:
+            return self._library_check(model, state, plan)
+
+    def _library_check(self, model, state, plan) -> str:
         _quiet_environment()
         from unified_planning.plans import ActionInstance, SequentialPlan
 
@@ -270,6 +295,24 @@ def _sparse_problem_class():
     return SparseProblem
 
 
+def _spawn_warm_driver():
+    """Start Fast Downward's warm process before Unified-Planning is imported, so that both start up at
+    once (its script is found without importing up_fast_downward; ``_warm_driver`` waits for it)."""
+    from pathlib import Path
+
+    from . import warm
+
+    spec = importlib.util.find_spec("up_fast_downward")
+    if spec is None or not spec.submodule_search_locations:
+        return
+    script = Path(list(spec.submodule_search_locations)[0]) / "downward" / "fast-downward.py"
+    if script.exists():
+        try:
+            warm.driver_for(str(script)).spawn()
+        except OSError:  # _warm_driver tries again, and says why
+            pass
+
+
 def _warm_driver(engine):
     """The warm process for a Fast Downward engine (None for other engines, or if it cannot start)."""
     from . import warm
@@ -287,44 +330,80 @@ def _warm_driver(engine):
     except warm.WorkerFailed as exc:  # it is marked broken
         log.warning("%s; every Fast Downward call runs its own driver instead.", exc)
         return None
-    _run_command_hook()
     return driver
 
 
-@functools.cache
 def _run_command_hook():
-    """Unified-Planning runs a PDDL engine's command with ``pddl_planner.run_command(engine, cmd, ...)``;
-    for an engine that carries a warm driver (``engine.warm_driver``) that process runs it instead.
-    Everything else (the files, the engine's own ``_solve``, plan reading, exit codes) stays UP's."""
+    """Unified-Planning runs a PDDL engine's command with ``pddl_planner.run_command(engine, cmd, ...)``,
+    in the process's working directory. For an engine that carries a folder of its own
+    (``engine.interlayer_cwd``) the command runs there instead, by the engine's warm driver
+    (``engine.warm_driver``) if it has one. Everything else (the files, the engine's own ``_solve``,
+    plan reading, exit codes) stays UP's."""
     from unified_planning.engines import pddl_planner
 
+    if getattr(pddl_planner.run_command, "interlayer_hook", False):
+        return
+    with _setup_lock:
+        if not getattr(pddl_planner.run_command, "interlayer_hook", False):
+            pddl_planner.run_command = _run_command_in_folder(pddl_planner.run_command)
+
+
+def _run_command_in_folder(original):
     from .warm import WorkerFailed
 
-    original = pddl_planner.run_command
-
     def run_command(engine, cmd, output_stream=None, timeout=None):
-        driver = getattr(engine, "warm_driver", None)
-        if driver is None or output_stream is not None:
+        folder = getattr(engine, "interlayer_cwd", None)
+        if folder is None or output_stream is not None:
             return original(engine, cmd, output_stream=output_stream, timeout=timeout)
-        start = time.perf_counter()
+        _UP_LOCK.release()  # held by _solve, the engine's only caller with a folder; the process needs no UP
         try:
-            return driver.run(cmd, os.getcwd(), timeout)
-        except WorkerFailed as exc:
-            log.warning("%s; Fast Downward's own driver runs this call instead.", exc)
-        left = None if timeout is None else max(0.0, timeout - (time.perf_counter() - start))
-        return original(engine, cmd, output_stream=output_stream, timeout=left)
+            driver = getattr(engine, "warm_driver", None)
+            if driver is not None:
+                start = time.perf_counter()
+                try:
+                    return driver.run(cmd, folder, timeout)
+                except WorkerFailed as exc:
+                    log.warning("%s; Fast Downward's own driver runs this call instead.", exc)
+                timeout = None if timeout is None else max(0.0, timeout - (time.perf_counter() - start))
+            return _run_in(folder, engine, cmd, timeout)
+        finally:
+            _UP_LOCK.acquire()
 
-    pddl_planner.run_command = run_command
+    run_command.interlayer_hook = True
     return run_command
 
 
+def _run_in(folder, engine, cmd, timeout):
+    """UP's ``run_command`` without an output stream, the process started in ``folder``."""
+    from unified_planning.engines.pddl_planner import terminate_process
+
+    engine._process = subprocess.Popen(cmd, cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                       start_new_session=True)
+    timed_out, out, err = False, [], []
+    try:
+        out, err = [[x.decode()] for x in engine._process.communicate(timeout=timeout)]
+    except subprocess.TimeoutExpired:
+        terminate_process(engine._process)
+        timed_out = True
+    retval = engine._process.returncode
+    engine._process = None
+    return timed_out, (out, err), retval
+
+
 def _solve(engine_name, params, problem, timeout, warm=False):
+    with _UP_LOCK:
+        return _solve_locked(engine_name, params, problem, timeout, warm)
+
+
+def _solve_locked(engine_name, params, problem, timeout, warm):
     from unified_planning.engines import PlanGenerationResultStatus as S
 
-    # Fast Downward's driver writes output.sas into the working directory: concurrent runs in one
-    # folder read each other's tasks. Each call gets a private folder.
-    with tempfile.TemporaryDirectory(prefix="interlayer-fd-") as scratch, contextlib.chdir(scratch), \
-            _engine(engine_name, params) as engine:
+    # Fast Downward's driver writes output.sas into its working directory: concurrent runs in one
+    # folder read each other's tasks. Each call's command runs in a private folder (not by changing
+    # this process's working directory: other threads use it).
+    with tempfile.TemporaryDirectory(prefix="interlayer-fd-") as scratch, _engine(engine_name, params) as engine:
+        _run_command_hook()
+        engine.interlayer_cwd = scratch
         compiled, chain, kind = _compile_for(engine, problem)
         if not engine.supports(kind):
             return "error", None, f"the engine '{engine_name}' cannot handle this problem's features ({sorted(kind.features)})"
@@ -354,6 +433,9 @@ def _solve(engine_name, params, problem, timeout, warm=False):
 def _child(conn, engine_name, params, problem, timeout):
     import warnings
 
+    global _UP_LOCK, _setup_lock
+    _UP_LOCK = threading.Lock()  # the parent's, copied while its forking thread held it
+    _setup_lock = threading.Lock()  # copied in whatever state another of the parent's threads left it
     warnings.filterwarnings("ignore", message=".*does not support timeout")  # we enforce it here
     try:
         _quiet_environment()
@@ -371,7 +453,8 @@ def _solve_in_child(engine_name, params, problem, timeout):
     ctx = multiprocessing.get_context("fork")
     parent, child = ctx.Pipe(duplex=False)
     proc = ctx.Process(target=_child, args=(child, engine_name, params, problem, timeout), daemon=True)
-    proc.start()
+    with _UP_LOCK:  # no other thread is half-way through UP's work as the child's copy of it is made
+        proc.start()
     child.close()  # the parent's copy: a child that dies must close the pipe's last write end
     ready = parent.poll(timeout)
     if not ready:
@@ -387,5 +470,6 @@ def _solve_in_child(engine_name, params, problem, timeout):
     if status != "solved":
         return status, None, reason
     actions = {a.name: a for a in problem.actions}
-    plan = SequentialPlan([ActionInstance(actions[a], [problem.object(o) for o in args]) for a, args in names])
+    with _UP_LOCK:
+        plan = SequentialPlan([ActionInstance(actions[a], [problem.object(o) for o in args]) for a, args in names])
     return "solved", plan, ""

@@ -32,7 +32,7 @@ def _factory(name, default_params):
         if name == "ff":
             engine, params = "fast-downward", {"fast_downward_search_config": FF_SEARCHES[0]}
             fallbacks = ({"fast_downward_search_config": FF_SEARCHES[1]},)
-        elif name == "fast-downward-bjolp":  # an alias of the satisficing engine name (DESIGN.md section 4)
+        elif name == "fast-downward-bjolp":  # an alias of the satisficing engine name (seq-opt-bjolp scaled best on Dinner-N)
             engine, params = "fast-downward", dict(default_params)
         else:
             engine, params = name, dict(default_params or {})

@@ -34,24 +34,39 @@ class WarmDriver:
         self.broken = False  # it could not start: the driver runs per call instead
         self.requests = 0  # answered so far
         self._buffer = b""
-        self._lock = threading.Lock()  # one request at a time
+        self._ready = False  # it said so (spawned, not yet ready: False)
+        self._lock = threading.RLock()  # one request (or start) at a time: threads share the driver
 
     @property
     def alive(self) -> bool:
         return self.proc is not None and self.proc.poll() is None
 
-    def start(self) -> None:
-        if self.alive:
-            return
-        if self.proc is not None:
-            log.warning("the warm Fast Downward process had stopped (exit code %s); starting a new one.",
-                        self.proc.returncode)
-        self.close()
-        # Its own session, as Unified-Planning runs the driver: Ctrl-C reaches only us, and we stop it.
-        try:
+    def spawn(self) -> None:
+        """Start the process without waiting for it to be ready (``start`` waits): it imports the driver
+        on another core while the caller goes on (e.g. imports Unified-Planning)."""
+        with self._lock:
+            if self.alive or self.broken:
+                return
+            if self.proc is not None:
+                log.warning("the warm Fast Downward process had stopped (exit code %s); starting a new one.",
+                            self.proc.returncode)
+            self.close()
+            # Its own session, as Unified-Planning runs the driver: Ctrl-C reaches only us, and we stop it.
             self.proc = subprocess.Popen([sys.executable, WORKER, str(Path(self.script).parent)], stdin=subprocess.PIPE,
                                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
-            self._buffer = b""
+            self._buffer, self._ready = b"", False
+
+    def start(self) -> None:
+        with self._lock:
+            self._start()
+
+    def _start(self) -> None:
+        if self.alive and self._ready:
+            return
+        if self.broken:
+            raise WorkerFailed("the warm Fast Downward process could not start before")
+        try:
+            self.spawn()
             ready = self._answer(time.monotonic() + START_TIMEOUT).get("ready") is True
         except WorkerFailed:
             self.broken = True
@@ -65,6 +80,7 @@ class WarmDriver:
             self.close()
             self.broken = True
             raise WorkerFailed(f"the warm Fast Downward process did not start{why}")
+        self._ready = True
 
     def run(self, cmd: list, cwd: str, timeout: float | None):
         """Run the driver command ``cmd`` (``[python, fast-downward.py, ...]``) in ``cwd``."""
@@ -151,13 +167,16 @@ def _read(cwd: str, name: str) -> list:
 
 
 _drivers: dict = {}
+_drivers_lock = threading.Lock()
 
 
 def driver_for(script: str) -> WarmDriver:
-    """The process-wide warm driver of ``script`` (closed at exit)."""
-    if script not in _drivers:
-        _drivers[script] = WarmDriver(script)
-    return _drivers[script]
+    """The process-wide warm driver of ``script`` (closed at exit), shared by threads: it runs one
+    request at a time, each in the folder its caller names."""
+    with _drivers_lock:
+        if script not in _drivers:
+            _drivers[script] = WarmDriver(script)
+        return _drivers[script]
 
 
 @atexit.register

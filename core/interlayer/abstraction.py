@@ -159,6 +159,9 @@ def abstract(problem: Problem) -> TaskModel:
         for kind, templates in act.learn.items():
             for tpl in templates:
                 f = logic.parse(tpl)  # a failure binds the ?blocker... variables (Failure.objects, .also)
+                if not isinstance(f.arg if isinstance(f, logic.Not) else f, logic.Pred):
+                    raise DomainError(f"The learn template {tpl!r} of {where} is not one fact or its negation; write "
+                                      f"'(P ?x ...)' to learn P true or '(not (P ?x ...))' to learn it false.")
                 _check_formula(spec, f, f"{where}, learn[{kind!r}]",
                                [*params, *(v for v in logic.free_variables(f) if v.startswith("?blocker"))])
         full_actions[act.name] = (act.parameters, pre, eff)

@@ -3,10 +3,11 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import config as cfg
+from . import config as cfg, contracts, shipped
 from .abstraction import TaskModel, abstract
 from .errors import UserError
 from .faults import ComponentFailed, Guarded, PluginFault, blame, blamed
@@ -23,12 +24,16 @@ def resolve_config(source, overrides=None) -> dict:
         raw = source
     else:
         path = Path(source)
+        if not path.exists():  # a shipped example by name ("gripper2d"), also from an installed wheel
+            path = shipped.find("examples", str(source)) or path
         if path.is_dir():
             if not (path / "config.toml").exists():
                 raise UserError(f"The folder {path} has no config.toml; give a config file or a folder written by 'interlayer plan --out'.")
             raw = cfg.load_toml(path / "config.toml")
         elif not path.exists():
-            raise UserError(f"No such file or folder: {path}.")
+            hint = (f"; the shipped examples are {', '.join(shipped.names('examples')) or 'not installed'}"
+                    if str(path.parent) in (".", "examples") else "")
+            raise UserError(f"No such file or folder: {path}{hint}.")
         elif path.suffix == ".toml":
             raw = cfg.load_toml(path)
             file = raw.get("problem", {}).get("file")
@@ -71,12 +76,12 @@ def build_problem(host: PluginHost, config: dict):
         comp = host["domains"].get(name)
         cfg.check(config, comp.params)
         with blame(comp.plugin, comp.label):
-            problem = comp.factory({**comp.params, **params}, seed)
+            problem = contracts.problem(comp.factory({**comp.params, **params}, seed))
     if comp is not None:
         if problem.drawing is None:
             problem.drawing = comp.drawing
         if not isinstance(problem.geometry, Guarded):
-            problem.geometry = Guarded(problem.geometry, comp.plugin, f"{comp.label} geometry", GEOMETRY_METHODS)
+            problem.geometry = _GeometryGuard(problem.geometry, comp.plugin, f"{comp.label} geometry", GEOMETRY_METHODS)
     return problem
 
 
@@ -102,11 +107,12 @@ def make_motion_planner(host: PluginHost, config: dict, name: str, stats: Stats)
         motion = comp.factory(options)
     motion.stats = stats
     motion.seed = config["planner"]["seed"]
-    return Guarded(motion, comp.plugin, comp.label, ("plan",))
+    return _MotionPlannerGuard(motion, comp.plugin, comp.label, ("plan",))
 
 
 class _TaskPlannerGuard(Guarded):
-    """A task planner whose exceptions, and answers with status "error", name its plugin."""
+    """A task planner whose exceptions, answers of the wrong type and answers with status "error"
+    name its plugin."""
 
     def __init__(self, task, comp):
         super().__init__(task, comp.plugin, comp.label, ("plan", "validate_plan", "library_check"))
@@ -114,9 +120,32 @@ class _TaskPlannerGuard(Guarded):
     def plan(self, model, state, timeout):
         plugin, component, _ = self._guard
         res = self.__getattr__("plan")(model, state, timeout)
+        with blame(plugin, f"{component} (plan)"):
+            contracts.task_result(res, model)
         if res.status == "error":
             raise PluginFault(plugin, component, ComponentFailed(res.reason))
         return res
+
+
+class _MotionPlannerGuard(Guarded):
+    """A motion planner whose exceptions and answers of the wrong type name its plugin (not the
+    domain's, whose geometry asks it)."""
+
+    def plan(self, query, *args, **kwargs):
+        plugin, component, _ = self._guard
+        res = self.__getattr__("plan")(query, *args, **kwargs)
+        with blame(plugin, f"{component} (plan)"):
+            return contracts.motion_plan(res, query)
+
+
+class _GeometryGuard(Guarded):
+    """A domain's geometry whose exceptions and refinement outcomes of the wrong type name its plugin."""
+
+    def refine_step(self, *args, **kwargs):
+        plugin, component, _ = self._guard
+        outcome = self.__getattr__("refine_step")(*args, **kwargs)
+        with blame(plugin, f"{component} (refine_step)"):
+            return contracts.step_outcome(outcome)
 
 
 def generators_for(host: PluginHost, model: TaskModel, config: dict) -> dict:
@@ -144,7 +173,10 @@ def _generator(comp):
     depends only on its arguments), its faults attributed."""
 
     def candidates(problem, step, world, rng):
-        yield from drawn_within(lambda: comp.factory(problem, step, world, rng), lambda: blame(comp.plugin, comp.label))
+        def checked():  # lazily: each item is checked as it is drawn, inside the blame
+            return map(contracts.candidate, contracts.iterable(comp.factory(problem, step, world, rng), "Candidates"))
+
+        yield from drawn_within(checked, lambda: blame(comp.plugin, comp.label))
 
     candidates.labels = {}
     return candidates
@@ -154,7 +186,8 @@ def _guarded_epoch_state(cls, plugin: str):
     # listed at once: the instance's state changes as it draws, so drawing order must not depend on the search
     def __call__(self, problem, step, world, rng):
         with blame(plugin, self.labels.get(step.action, f"pose generator '{cls.__name__}'")):
-            return list(cls.__call__(self, problem, step, world, rng))
+            items = contracts.iterable(cls.__call__(self, problem, step, world, rng), "Candidates")
+            return [contracts.candidate(item) for item in items]
 
     return type(cls.__name__, (cls,), {"__call__": __call__, "labels": {}, "__qualname__": cls.__qualname__})
 
@@ -163,8 +196,15 @@ def translators_for(host: PluginHost, config: dict) -> list:
     out = []
     for name in config["planner"]["translators"]:
         comp = host["failure_translators"].get(name)
-        out.append((name, blamed(comp.factory, comp.plugin, comp.label)))
+        out.append((name, blamed(_checked_translator(comp.factory), comp.plugin, comp.label)))
     return out
+
+
+def _checked_translator(translate):
+    def facts(failure, step, model):
+        return contracts.facts(translate(failure, step, model), model)
+
+    return facts
 
 
 @dataclass
@@ -197,16 +237,21 @@ def prepare(source, overrides=None, host: PluginHost | None = None) -> Prepared:
                     translators_for(host, config), stats, cartesian)
 
 
-def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), pddl_dir=None, on_stuck=None) -> Result:
+def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), pddl_dir=None,
+          origin: float | None = None, on_stuck=None) -> Result:
     """Solve a problem: ``source`` is a config path, a problem file, an output folder or a dict;
     ``overrides`` a list of ``"section.key=value"`` strings or a dict ``{"section.key": value}``.
-    ``pddl_dir``: write every task-planner call's problem there as PDDL. ``on_stuck(result)``: called
+    ``pddl_dir``: write every task-planner call's problem there as PDDL. ``listeners``: functions
+    called with every trace event (one with a ``prepared(problem)`` method is first told the problem).
+    ``origin``: where the
+    result's wall time starts (``time.perf_counter()`` clock; default: now). ``on_stuck(result)``: called
     from another thread with the run so far (status "timeout") when a plugin call overruns the time
     limit and cannot be stopped (stuck in C code or a sleep); the CLI writes it and ends the process.
     Without it such a run ends when the call returns.
 
     Raises ``UserError`` for bad input, ``PluginFault`` for an exception in a plugin's code and
     ``Interrupted`` (a ``KeyboardInterrupt`` whose ``result`` holds the run so far) on Ctrl-C."""
+    origin = time.perf_counter() if origin is None else origin
     host = host or PluginHost()
     run = prepare(source, overrides, host)
     config, problem, model, stats = run.config, run.problem, run.model, run.stats
@@ -219,6 +264,9 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
         run.task.prepare(model)
     if hasattr(run.motion, "prepare"):
         run.motion.prepare()
+    for listener in listeners:  # e.g. a live viewer, which draws the problem before the run starts
+        if hasattr(listener, "prepared"):
+            listener.prepared(problem)
     trace = Trace([host.on_event, *listeners])
     for warning in host.warnings:
         trace.emit("warning", message=warning)
@@ -227,7 +275,9 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
         problem.geometry.stats = stats
     if hasattr(problem.geometry, "cartesian"):  # the domain plans straight-line end-effector segments
         problem.geometry.cartesian = run.cartesian
+
     def stuck(result):
+        _clocked(result, origin)
         result.config = config
         on_stuck(result)
 
@@ -236,10 +286,19 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
     try:
         result = layer.solve()
     except Interrupted as stop:
+        _clocked(stop.result, origin)
         stop.result.config = config
         raise
+    _clocked(result, origin)
     result.config = config
     return result
+
+
+def _clocked(result: Result, origin: float) -> None:
+    """The wait so far: start-up (imports, plugins, the scene and robot, the task planner's start) and planning."""
+    planning = result.times.get("total", 0.0)
+    result.origin = origin
+    result.wall = {"startup": max(0.0, time.perf_counter() - planning - origin), "planning": planning}
 
 
 def write_outputs(result: Result, out_dir) -> Path:
@@ -249,15 +308,32 @@ def write_outputs(result: Result, out_dir) -> Path:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise UserError(f"Cannot create the output folder {out}: {exc.strerror}.") from None
-    _write(out / "result.json", result.to_json())
-    (out / "config.toml").write_text(cfg.to_toml(result.config))
+    start = time.perf_counter()
     problem = result.problem
+    trajectory = None
+    if result.solved and hasattr(problem.geometry, "trajectory_json"):  # e.g. timing by TOPP-RA
+        trajectory = problem.geometry.trajectory_json(result.plan, result.refinement)
+    exported = time.perf_counter()
+    (out / "config.toml").write_text(cfg.to_toml(result.config))
     _write(out / "problem.json", {"name": problem.name, "source": problem.source, "objects": dict(problem.objects),
                                   "init": sorted(" ".join(a) for a in problem.init), "goal": problem.goal})
     _write(out / "trace.json", result.trace.to_json())
-    if result.solved and hasattr(problem.geometry, "trajectory_json"):
-        _write(out / "trajectory.json", problem.geometry.trajectory_json(result.plan, result.refinement))
+    if trajectory is not None:
+        _write(out / "trajectory.json", trajectory)
+    _account(result, start, exported)
+    _write(out / "result.json", result.to_json())  # last, with the wait it completes
     return out
+
+
+def _account(result: Result, start: float, exported: float) -> None:
+    """``result.wall`` completed: export, writing, the rest (between the parts) and the total so far."""
+    now = time.perf_counter()
+    wall = {k: v for k, v in result.wall.items() if k in ("startup", "planning")}
+    wall.update(export=exported - start, writing=now - exported)
+    if result.origin is not None:
+        wall["total"] = now - result.origin
+        wall["other"] = max(0.0, wall["total"] - sum(v for k, v in wall.items() if k != "total"))
+    result.wall = wall
 
 
 def _write(path: Path, data) -> None:
@@ -296,10 +372,7 @@ def validation(out_dir, host: PluginHost | None = None) -> Validation:
     from .planning import check_plan
 
     out = Path(out_dir)
-    for name in ("result.json", "config.toml"):
-        if not (out / name).exists():
-            raise UserError(f"{out} has no {name}; give a folder written by 'interlayer plan --out'.")
-    result = _read_json(out / "result.json")
+    result = read_run(out)
     if result.get("status") != "solved":
         return Validation([f"the run did not solve the problem (status {result.get('status')}): nothing to validate"], [])
     config = resolve_config(out)
@@ -330,6 +403,29 @@ def validation(out_dir, host: PluginHost | None = None) -> Validation:
     else:
         checked.append(f"trajectory NOT re-checked: the domain '{problem.domain.name}' has no trajectory validator")
     return Validation(violations, checked)
+
+
+def read_run(out_dir) -> dict:
+    """The result.json of a folder written by 'interlayer plan --out' (checked to be one)."""
+    out = Path(out_dir)
+    if not out.is_dir():
+        raise UserError(f"No such folder: {out}; give a folder written by 'interlayer plan --out'.")
+    for name in ("result.json", "config.toml"):
+        if not (out / name).exists():
+            raise UserError(f"{out} has no {name}; give a folder written by 'interlayer plan --out'.")
+    return _read_json(out / "result.json")
+
+
+def read_trajectory(out_dir) -> dict:
+    """The trajectory.json of a solved run's folder; a UserError for any other folder."""
+    out = Path(out_dir)
+    result = read_run(out)
+    if result.get("status") != "solved":
+        raise UserError(f"The run in {out} did not solve its problem (status {result.get('status')}), so it has no "
+                        f"trajectory; give the folder of a solved run.")
+    if not (out / "trajectory.json").exists():
+        raise UserError(f"{out} has no trajectory.json; write the run again with 'interlayer plan --out'.")
+    return _read_json(out / "trajectory.json")
 
 
 def _read_json(path: Path) -> dict:

@@ -15,20 +15,27 @@ def interlayer_register_motion_planners(registry):
 def translate_by_templates(failure, step, model):
     """Turn a failure into the facts its action declares in ``learn[kind]`` (e.g. Obstructs): one per
     object bound to the template's ``?blocker...`` variable (``?blocker``: the failure's objects; others:
-    ``failure.also``), or one fact for a template without such a variable."""
+    ``failure.also``), or one fact for a template without such a variable. A negated template
+    (``(not (Reachable ?p))``) gives ``logic.negated`` facts: the loop deletes them from the state."""
     spec = model.problem.domain.action(step.action)
     templates = spec.learn.get(failure.kind, ())
     binding = model.binding(step)
     also = failure.also_objects() if templates else {}
     facts = set()
     for tpl in templates:
-        pred = logic.parse(tpl)
+        literal = logic.parse(tpl)
+        pred = literal.arg if isinstance(literal, logic.Not) else literal
+
+        def fact(b, negative=pred is not literal):
+            atom = logic.ground_atom(pred, b)
+            return logic.negated(atom) if negative else atom
+
         var = next((a for a in pred.args if a.startswith("?blocker")), None)
         if var is None:
-            facts.add(logic.ground_atom(pred, binding))
+            facts.add(fact(binding))
             continue
         for blocker in failure.objects if var == "?blocker" else also.get(var, ()):
-            facts.add(logic.ground_atom(pred, dict(binding, **{var: blocker})))
+            facts.add(fact(dict(binding, **{var: blocker})))
     return facts
 
 

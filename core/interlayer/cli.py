@@ -11,6 +11,7 @@ import sys
 
 from .errors import UserError
 from .faults import PluginFault
+from .result import MEANING
 
 EXIT_OK, EXIT_NOT_SOLVED, EXIT_USER_ERROR, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -19,15 +20,28 @@ def log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
+def step_text(step: dict) -> str:
+    return f"{step['action']}({', '.join(step['args'])})"
+
+
+def shortened_text(e: dict) -> str:
+    """The 'shortened' trace event in words: how many steps were refined and which were dropped."""
+    dropped = e["dropped"]
+    return (f"refined {e['refined']} steps, dropped {len(dropped)} as not needed: "
+            + "; ".join(step_text(s) for s in dropped))
+
+
 def progress_printer(verbose: bool):
     """Turn trace events into short human-readable lines on stderr."""
 
     def show(e):
+        if e["type"] == "attempt" and not verbose:
+            return
         t = f"[{e['t']:7.2f}s]"
         kind = e["type"]
         if kind == "task_plan":
             if e["status"] == "solved":
-                steps = "; ".join(f"{s['action']}({', '.join(s['args'])})" for s in e["plan"])
+                steps = "; ".join(step_text(s) for s in e["plan"])
                 cost = f", cost {e['cost']:g}" if e.get("cost") is not None else ""
                 log(f"{t} task plan #{e['call']} from step {e['from_step']} ({e['time']:.2f} s{cost}): {steps}")
             else:
@@ -47,23 +61,134 @@ def progress_printer(verbose: bool):
             log(f"{t} reset (epoch {e['epoch']}): {e['reason']}; learned facts cleared, generators reseeded")
         elif kind == "refined":
             log(f"{t} refinement found for all {e['steps']} steps")
+        elif kind == "shortened" and e["dropped"]:
+            log(f"{t} {shortened_text(e)}")
         elif kind == "warning":
             log(f"warning: {e['message']}")
-        elif kind == "attempt" and verbose:
+        elif kind == "attempt":
             verdict = "ok" if e["ok"] else (e["failure"] or {}).get("detail") or "failed"
             log(f"{t}   {e['mode']} step {e['step']} {e['action']} [{e['candidate']}]: {verdict}")
 
+    show.verbose = verbose
     return show
+
+
+class StatusLine:
+    """On a terminal: one status line at the bottom of stderr, redrawn in place (elapsed time, phase,
+    task-planner calls, replans, the current step, the longest refined prefix), with the event lines
+    printed above it; a daemon thread redraws it while a step takes long."""
+
+    TICK = 0.25  # s between redraws of the elapsed time
+
+    def __init__(self, events, stream=None):
+        import threading
+
+        from .trace import process_start
+
+        self.events, self.stream = events, stream or sys.stderr
+        self.start = process_start()  # the wait so far, imports included
+        self.phase, self.calls, self.replans = "starting (imports, plugins, scene)", 0, 0
+        self.step, self.plan_length, self.best = None, 0, 0
+        self.lock, self.shown, self.stopped = threading.Lock(), False, threading.Event()
+        threading.Thread(target=self._tick, daemon=True, name="interlayer-status").start()
+
+    def _tick(self):
+        while not self.stopped.wait(self.TICK):
+            self.draw()
+
+    def text(self) -> str:
+        import time
+
+        parts = [f"[{time.perf_counter() - self.start:7.1f}s] {self.phase}"]
+        if self.plan_length:
+            if self.step is not None:
+                parts.append(f"step {self.step}/{self.plan_length}")
+            parts.append(f"refined prefix {self.best}/{self.plan_length}")
+        parts.append(f"task-planner calls {self.calls}, replans {self.replans}")
+        return " | ".join(parts)
+
+    def draw(self):
+        import shutil
+
+        width = shutil.get_terminal_size((100, 20)).columns - 1
+        with self.lock:
+            if not self.stopped.is_set():
+                self.stream.write("\r\x1b[K" + self.text()[:width])
+                self.stream.flush()
+                self.shown = True
+
+    def clear(self):
+        with self.lock:
+            if self.shown:
+                self.stream.write("\r\x1b[K")
+                self.stream.flush()
+                self.shown = False
+
+    def set_phase(self, phase: str):
+        self.phase = phase
+        self.draw()
+
+    def stop(self):
+        self.stopped.set()
+        self.clear()
+
+    def __call__(self, e):
+        kind = e["type"]
+        if kind in ("start", "failure"):
+            self.phase = "task planning"
+        elif kind == "task_plan":
+            self.calls = e["call"]
+            if e["status"] == "solved":
+                self.plan_length = e["from_step"] + len(e["plan"])
+                self.phase = "refinement"
+        elif kind == "refine":
+            self.phase, self.plan_length = f"{e['mode']} refinement", len(e["plan"])
+            self.best = min(self.best, e["from_step"])
+        elif kind == "attempt":
+            self.step = e["step"]
+            if e["ok"]:
+                self.best = max(self.best, e["step"] + 1)
+        elif kind == "replan":
+            self.replans += 1
+            self.plan_length, self.best = len(e["plan"]), e["fail_step"]
+        elif kind == "reset":
+            self.best, self.phase = 0, f"reset (epoch {e['epoch']})"
+        elif kind == "refined":
+            self.phase, self.step = "shortcutting", None
+        elif kind == "shortened":
+            self.plan_length = self.best = len(e["plan"])
+            self.phase = "validating"
+        elif kind == "end":
+            self.phase = "done"
+        if kind != "attempt" or self.events.verbose:  # the event lines go above the status line
+            self.clear()
+            with self.lock:
+                self.events(e)
+        self.draw()
 
 
 def cmd_plan(args) -> int:
     from . import api
     from .loop import Interrupted
+    from .trace import process_start
 
-    listeners = [] if args.quiet else [progress_printer(args.verbose)]
+    if args.verbose:  # libraries' own messages (e.g. OMPL's) too
+        import logging
+
+        logging.getLogger("interlayer").setLevel(logging.INFO)
     if args.dump_pddl and not args.out:
         raise UserError("--dump-pddl writes into OUT_DIR/pddl/: give --out DIR as well.")
+    lines = progress_printer(args.verbose)
+    status = StatusLine(lines) if not args.quiet and sys.stderr.isatty() else None
+    listeners = [] if args.quiet else [status or lines]
+    viewer = None
+    if args.viz:  # streams the search; its server stops with the run
+        from .viz import live_stream
+
+        viewer = live_stream(host=args.viz_host)
+        listeners.append(viewer)
     pddl_dir = f"{args.out}/pddl" if args.dump_pddl else None
+
     def stuck(result):  # a plugin call overran the time limit in C code or a sleep: end the process
         try:
             log(f"Not solved ({result.status}): {result.reason}")
@@ -76,16 +201,31 @@ def cmd_plan(args) -> int:
             os._exit(EXIT_NOT_SOLVED)
 
     try:
-        result = api.solve(args.source, overrides=args.set, listeners=listeners, pddl_dir=pddl_dir, on_stuck=stuck)
-    except Interrupted as stop:  # keep what was done: the trace so far explains the run
+        try:
+            result = api.solve(args.source, overrides=args.set, listeners=listeners, pddl_dir=pddl_dir,
+                               origin=process_start(), on_stuck=stuck)
+        except Interrupted as stop:  # keep what was done: the trace so far explains the run
+            if args.out:
+                api.write_outputs(stop.result, args.out)
+            if status:
+                status.stop()
+            if viewer:
+                viewer.close()
+            log(f"interrupted{f'; wrote the trace so far to {args.out}/trace.json' if args.out else ''}")
+            if args.json:
+                print(json.dumps(stop.result.to_json()))
+            return EXIT_INTERRUPTED
         if args.out:
-            api.write_outputs(stop.result, args.out)
-        log(f"interrupted{f'; wrote the trace so far to {args.out}/trace.json' if args.out else ''}")
-        if args.json:
-            print(json.dumps(stop.result.to_json()))
-        return EXIT_INTERRUPTED
-    if args.out:
-        api.write_outputs(result, args.out)
+            if status:
+                status.set_phase(f"writing {args.out}/" + (" (exporting the trajectory)" if result.solved else ""))
+            api.write_outputs(result, args.out)
+    except BaseException:
+        if viewer:
+            viewer.close()
+        raise
+    finally:
+        if status:
+            status.stop()
     data = result.to_json()
     if args.json:
         print(json.dumps(data))
@@ -97,16 +237,14 @@ def cmd_plan(args) -> int:
             for i, s in enumerate(result.plan):
                 log(f"  {i}: {s}")
         else:
-            log(f"Not solved ({result.status}): {result.reason}")
+            log(f"Not solved ({result.status}: {MEANING.get(result.status, 'not solved')}): {result.reason}")
         if result.learned_facts:
             log("Learned facts: " + ", ".join(data["learned_facts"]))
         if args.out:
             log(f"Wrote {args.out}/ (result.json, trace.json, config.toml, problem.json"
                 f"{', trajectory.json' if result.solved else ''}).")
-    if args.viz:  # after the summary: in a terminal the live viewer waits for Ctrl-C
-        from .viz import live_view
-
-        live_view(result)
+    if viewer:  # after the summary: in a terminal the live viewer waits for Ctrl-C
+        viewer.finish(result)
     return EXIT_OK if result.solved else EXIT_NOT_SOLVED
 
 
@@ -224,8 +362,42 @@ def cmd_explain(args) -> int:
     return EXIT_OK
 
 
+def distribution_version() -> str:
+    """The installed distribution's version; the package's own in a source checkout that is not installed."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("interlayer")
+    except metadata.PackageNotFoundError:
+        from . import __version__
+
+        return __version__
+
+
+class _Version(argparse.Action):
+    """--version, looked up only when asked for (metadata lookups cost start-up time)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None):
+        super().__init__(option_strings, dest, nargs=0, default=default, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"interlayer {distribution_version()}")
+        parser.exit()
+
+
+def cmd_export(args) -> int:
+    from .export import export
+
+    written = export(args.out_dir, args.format, args.output)
+    log(f"Wrote {written['path']} ({written['segments']} joint trajectories, {written['points']} points).")
+    if args.json:
+        print(json.dumps(written))
+    return EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="interlayer", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action=_Version, help="print the installed version and exit")
     sub = parser.add_subparsers(dest="command", required=True)
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -235,11 +407,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("plan", parents=[common], help="solve a problem (config file, problem file or output folder)")
     p.add_argument("source", metavar="CONFIG_OR_PROBLEM")
     p.add_argument("--out", metavar="DIR", help="write result.json, trace.json, trajectory.json, ... to DIR")
-    p.add_argument("--viz", action="store_true", help="open a live 3D viewer of the solution")
+    p.add_argument("--viz", action="store_true",
+                   help="stream the search into a live 3D viewer (each failure's world, then the solution)")
+    p.add_argument("--viz-host", default="127.0.0.1", metavar="ADDRESS",
+                   help="the address the live viewer's server listens on (default 127.0.0.1: this machine only)")
     p.add_argument("--dump-pddl", action="store_true",
                    help="write each task-planner call's problem to OUT_DIR/pddl/ (call-NNN-domain.pddl, call-NNN-problem.pddl)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
-    p.add_argument("-v", "--verbose", action="store_true", help="show every refinement attempt")
+    p.add_argument("-v", "--verbose", action="store_true", help="show every refinement attempt and the libraries' own messages (OMPL's)")
     p.set_defaults(func=cmd_plan)
 
     c = sub.add_parser("check", parents=[common], help="show pose references, Prop. 1 defaults and uniformity (Def. 1)")
@@ -262,6 +437,16 @@ def build_parser() -> argparse.ArgumentParser:
         page.add_argument("-o", "--output", default=default, help=f"the HTML file to write (default {default})")
         page.add_argument("--visualizer", default="meshcat", help="the registered visualizer to use")
         page.set_defaults(func=func, json=False)
+
+    from .export import FORMATS
+
+    e = sub.add_parser("export", help="write a solved run's joint trajectories for a robot (a ROS 2 bag or CSV)")
+    e.add_argument("out_dir", metavar="OUT_DIR")
+    e.add_argument("--format", required=True, choices=FORMATS,
+                   help="rosbag2: one trajectory_msgs/msg/JointTrajectory per segment (extra 'export'); csv: one row per point")
+    e.add_argument("-o", "--output", required=True, metavar="PATH", help="the bag folder or CSV file to write")
+    e.add_argument("--json", action="store_true", help="print what was written as one JSON object to stdout")
+    e.set_defaults(func=cmd_export)
 
     from .bench.commands import add_commands  # bench, report
 
@@ -297,5 +482,32 @@ def main(argv=None) -> int:
         return EXIT_NOT_SOLVED
 
 
+def exit_after(entry) -> None:
+    """Run ``entry()`` and exit with its code without tearing the interpreter down: freeing hundreds of
+    modules and the C++ libraries' objects one by one takes 0.2-0.5 s that a user would wait for after
+    the last line. atexit handlers registered since still run (e.g. stopping a warm task planner)."""
+    import atexit
+
+    code = []
+
+    def leave():  # registered first, so it runs last (after non-daemon threads ended and every later handler)
+        if code:
+            os._exit(code[0])
+
+    atexit.register(leave)
+    code.append(entry())
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe
+            pass
+    sys.exit(code[0])
+
+
+def run() -> None:
+    """The ``interlayer`` command."""
+    exit_after(main)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    run()

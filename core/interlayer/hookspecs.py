@@ -56,7 +56,8 @@ def interlayer_register_failure_translators(registry):
     """Register failure translators: ``fn(failure, step, model) -> set of atoms``.
 
     Every translator named in ``planner.translators`` is applied to each motion-planning failure and
-    the union of their facts is added to the state at the failing step (Alg. 1, line 9).
+    the union of their facts is added to the state at the failing step (Alg. 1, line 9); a
+    ``logic.negated(atom)`` in the set deletes ``atom`` from it instead.
 
     :param registry: the failure-translator registry.
     """
@@ -66,7 +67,9 @@ def interlayer_register_failure_translators(registry):
 def interlayer_register_visualizers(registry):
     """Register visualizers: ``factory(options) -> object`` with ``plan_page(out_dir, path)`` (a 3D
     animation of the refined plan), ``explain_page(out_dir, path)`` (the search explained) and
-    optionally ``live(result)`` (a live viewer for ``plan --viz``).
+    optionally ``stream(host)`` (for ``plan --viz``: a trace listener with ``prepared(problem)``,
+    ``finish(result)`` and ``close()`` that shows the run in a live viewer served on ``host``) and
+    ``live(result)`` (a live viewer of a result).
 
     :param registry: the visualizer registry.
     """

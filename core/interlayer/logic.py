@@ -291,6 +291,19 @@ def atom_str(atom: Atom) -> str:
     return "(" + " ".join(atom) + ")"
 
 
+def negated(atom: Atom) -> Not:
+    """The literal "``atom`` is false": what a translator returns to delete a fact (e.g. to correct a
+    geometric atom that Prop. 1 made true by default)."""
+    return Not(Pred(atom[0], tuple(atom[1:])))
+
+
+def literal_str(literal) -> str:
+    """An atom, or a ``negated`` atom, as PDDL: ``(P a b)`` or ``(not (P a b))``."""
+    if isinstance(literal, Not):
+        return f"(not {atom_str(ground_atom(literal.arg, {}))})"
+    return atom_str(literal)
+
+
 def parse_atom(text: str) -> Atom:
     f = parse(text)
     if not isinstance(f, Pred):

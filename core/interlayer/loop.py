@@ -66,6 +66,7 @@ class InterfaceLayer:
         self.watch = ProgressWatch(model)
         self.plan: list = []
         self.on_stuck = on_stuck  # called with the run so far when a plugin call cannot be stopped (supervisor.py)
+        self.dropped: list = []  # steps the shortcutting dropped from the refined plan, in order
 
     # -- pieces -----------------------------------------------------------------------------
     def _time_left(self) -> float:
@@ -137,11 +138,21 @@ class InterfaceLayer:
         self.learned = []
         self.times_learned.clear()
 
-    def translate(self, failure, step: GroundStep) -> set:
-        facts = set()
+    def translate(self, failure, step: GroundStep) -> tuple[set, set]:
+        """The atoms the translators learned true and those they learned false (``logic.negated``)."""
+        true, false = set(), set()
         for _, fn in self.translators:
-            facts |= set(fn(failure, step, self.model))
-        return facts
+            for fact in fn(failure, step, self.model):
+                if isinstance(fact, logic.Not):
+                    false.add(logic.ground_atom(fact.arg, {}))
+                else:
+                    true.add(fact)
+        return true, false
+
+    def with_learned(self, state: frozenset) -> frozenset:
+        """``state`` with this epoch's learned facts: deletions applied, additions added."""
+        gone = {logic.ground_atom(f.arg, {}) for f in self.learned if isinstance(f, logic.Not)}
+        return (state - gone) | {f for f in self.learned if not isinstance(f, logic.Not)}
 
     def progress_all(self, state: frozenset, plan) -> list:
         """Symbolic states before each step of ``plan`` and after the last one."""
@@ -162,13 +173,16 @@ class InterfaceLayer:
         from .shortcut import shortcut
 
         def accepted(dropped, shorter):
+            self.dropped += dropped
             self.trace.emit("shortcut", dropped=plan_json(dropped), plan=plan_json(shorter))
 
         before = len(self.plan)
-        self.plan, outcomes = shortcut(self.plan, outcomes, self.model, init | frozenset(self.learned), self.geometry,
+        self.plan, outcomes = shortcut(self.plan, outcomes, self.model, self.with_learned(init), self.geometry,
                                        self.motion, world0, self._cut, accepted, self.stats)
         self.stats.count("plan_length_before_shortcut", before)
         self.stats.count("plan_length", len(self.plan))
+        # one summary where the steps are counted: the log, result.json and the explain page print it
+        self.trace.emit("shortened", refined=before, dropped=plan_json(self.dropped), plan=plan_json(self.plan))
         return outcomes
 
     def _solved(self, init, world0, done):
@@ -202,8 +216,10 @@ class InterfaceLayer:
                 supervisor.start()
                 try:
                     status, reason, refinement = self._run()
-                except (Infeasible, NoProgress) as exc:
+                except Infeasible as exc:  # a domain's own proof that a reference has no instance
                     status, reason, refinement = "unsolvable", str(exc), None
+                except NoProgress as exc:  # nothing proved: the loop stopped itself (watchdog, exhausted budget)
+                    status, reason, refinement = "gave_up", str(exc), None
                 except DeadlineExceeded as exc:
                     status, reason, refinement = "timeout", self._timeout_reason(exc, supervisor.stopped), None
         except DeadlineExceeded as exc:  # the supervisor's, delivered while the run was ending
@@ -241,7 +257,8 @@ class InterfaceLayer:
                       plan_cost=self.model.cost(self.plan) if solved else None,
                       learned_facts=list(self.learned), replans=self.replans, task_planner_calls=self.task_calls,
                       times=dict(self.stats.times), counts=dict(self.stats.counts), seed=self.settings.seed,
-                      refinement=refinement, trace=self.trace, problem=self.model.problem, model=self.model)
+                      refinement=refinement, trace=self.trace, problem=self.model.problem, model=self.model,
+                      shortcut_dropped=list(self.dropped) if solved else [])
 
     def _run(self):
         init = self.model.init
@@ -272,23 +289,23 @@ class InterfaceLayer:
                     # (e.g. put-downs kept off an approach ranked since): one of them refined every step
                     return self._solved(init, world0, partial)
                 f = partial.fail_step
-                facts = self.translate(partial.failure, self.plan[f])
-                if not facts:
+                true, false = self.translate(partial.failure, self.plan[f])
+                if not true and not false:
                     self.watch.untranslated(partial.failure, self.plan[f])
-                facts -= states[f]
+                true, false = true - states[f], false & states[f]  # only what changes the state
+                facts = sorted(true) + [logic.negated(a) for a in sorted(false)]
+                shown = [logic.literal_str(a) for a in facts]
                 if not facts:
                     continue  # nothing new to tell the task planner: try the next failure
                 if all(self.times_learned[a] >= RELEARN_LIMIT for a in facts):
-                    self.trace.emit("recurring", step=f, action=str(self.plan[f]), limit=RELEARN_LIMIT,
-                                    facts=[logic.atom_str(a) for a in sorted(facts)])
+                    self.trace.emit("recurring", step=f, action=str(self.plan[f]), limit=RELEARN_LIMIT, facts=shown)
                     continue  # learned and undone again and again in this epoch: try the next failure
                 traj_count += 1
-                state = states[f] | facts  # line 9
-                self.learned += [a for a in sorted(facts) if a not in self.learned]
+                state = (states[f] - false) | true  # line 9
+                self.learned += [a for a in facts if a not in self.learned]
                 self.times_learned.update(facts)
                 self.trace.emit("failure", step=f, action=str(self.plan[f]), candidate=partial.candidate.label,
-                                failure=partial.failure.to_json(), facts=[logic.atom_str(a) for a in sorted(facts)],
-                                world=self.geometry.snapshot(partial.world))
+                                failure=partial.failure.to_json(), facts=shown, world=self.geometry.snapshot(partial.world))
                 new_plan = self.call_task_planner(state, f)  # line 10
                 if new_plan is not None:  # lines 11-13
                     self.replans += 1
@@ -299,8 +316,7 @@ class InterfaceLayer:
                     self.trace.emit("replan", fail_step=f, prefix=plan_json(old[:f]), new_plan=plan_json(new_plan),
                                     plan=plan_json(self.plan))
                     break
-                self.trace.emit("dead_end", step=f, facts=[logic.atom_str(a) for a in sorted(facts)],
-                                status=self.last_task_status)
+                self.trace.emit("dead_end", step=f, facts=shown, status=self.last_task_status)
                 if traj_count >= self.settings.max_traj_count or self._out_of_time():
                     break
             if new_plan is None and not self._out_of_time():  # lines 14-17

@@ -33,7 +33,13 @@ class TaskPlanner:
         self.calls += 1
         if timeout <= 0:
             return TaskPlanResult("timeout", reason="no time left for the task planner")
-        status, raw, reason, cost = self._plan(model, state, timeout)
+        answer = self._plan(model, state, timeout)
+        if not (isinstance(answer, tuple) and len(answer) == 4):
+            from .contracts import shown
+            from .faults import ComponentFailed
+
+            raise ComponentFailed(f"its _plan returned {shown(answer)}, not (status, steps, reason, cost)")
+        status, raw, reason, cost = answer
         plan = tuple(model.reintroduce(a, tuple(args)) for a, args in raw)
         if status == "solved":
             problem = check_plan(model, state, plan)

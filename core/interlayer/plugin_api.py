@@ -22,7 +22,8 @@ Motion planners
 Task planners
     subclass ``TaskPlanner`` and implement ``_plan(model, state, timeout)`` over a ``TaskModel``.
 Failure translators
-    ``fn(failure, step, model) -> set of atoms`` (atoms are tuples ``("Obstructs", "b2", "gp_b1")``).
+    ``fn(failure, step, model) -> set of atoms`` (atoms are tuples ``("Obstructs", "b2", "gp_b1")``;
+    ``negated(atom)`` learns an atom false: the loop deletes it).
 Errors
     raise ``UserError`` with one plain sentence for bad input (the CLI exits 2); any other exception
     from plugin code is reported as that plugin's fault (``PluginFault``).
@@ -35,10 +36,11 @@ from .builtin import translate_by_templates
 from .domain import ActionSpec, DomainSpec, GroundStep, Problem, Skolem
 from .errors import UserError
 from .faults import PluginFault
+from .logic import negated
 from .motion import ConfigSpace, InterpolatingPlanner, MotionPlan, MotionPlanner, MotionQuery, points_valid, segment_valid
 from .planning import TaskPlanner, TaskPlanResult
 from .plugins import Registry
-from .refine import Candidate, EpochState, Failure, Geometry, Infeasible, StepOutcome
+from .refine import ROBOT_MOVED, Candidate, EpochState, Failure, Geometry, Infeasible, StepOutcome
 
 
 class Drawing(Protocol):
@@ -58,7 +60,7 @@ class Drawing(Protocol):
 __all__ = [
     "hookimpl", "Registry", "UserError", "PluginFault",
     "DomainSpec", "ActionSpec", "Skolem", "Problem", "GroundStep", "TaskModel",
-    "Geometry", "Candidate", "StepOutcome", "Failure", "Infeasible", "EpochState", "Drawing",
+    "Geometry", "Candidate", "StepOutcome", "Failure", "Infeasible", "EpochState", "ROBOT_MOVED", "Drawing",
     "ConfigSpace", "MotionQuery", "MotionPlan", "MotionPlanner", "InterpolatingPlanner", "segment_valid", "points_valid",
-    "TaskPlanner", "TaskPlanResult", "translate_by_templates",
+    "TaskPlanner", "TaskPlanResult", "translate_by_templates", "negated",
 ]

@@ -1,6 +1,7 @@
 """The plugin manager and the component registries."""
 from __future__ import annotations
 
+import importlib
 import importlib.metadata
 from dataclasses import dataclass, field
 from typing import Callable
@@ -48,9 +49,11 @@ class Registry:
     def label(self) -> str:
         return self.kind.replace("_", " ")[:-1]
 
-    def add(self, name: str, factory: Callable, description: str = "", params: dict | None = None, drawing=None):
-        """Register a component. Domains may pass ``params`` (accepted problem keys with defaults)
-        and ``drawing`` (a module, or its dotted name, with ``draw_scene`` and ``animation_frames``)."""
+    def add(self, name: str, factory: Callable | str, description: str = "", params: dict | None = None, drawing=None):
+        """Register a component. ``factory`` may be a ``"module:attribute"`` string, imported when the
+        component is first selected: discovering the plugins then imports no domain's libraries.
+        Domains may pass ``params`` (accepted problem keys with defaults) and ``drawing`` (a module, or
+        its dotted name, with ``draw_scene`` and ``animation_frames``)."""
         self._put(Component(name, factory, description, self.current_plugin, params=dict(params or {}), drawing=drawing))
 
     def unavailable(self, name: str, reason: str, description: str = ""):
@@ -80,6 +83,10 @@ class Registry:
             )
         if not comp.available:
             raise UserError(f"The {label} '{name}' is not available here: {comp.reason}.")
+        if isinstance(comp.factory, str):  # registered by name: imported now
+            module, _, attribute = comp.factory.partition(":")
+            with blame(comp.plugin, comp.label):
+                comp.factory = getattr(importlib.import_module(module), attribute)
         return comp
 
 
@@ -187,8 +194,10 @@ class PluginHost:
         for impl in reversed(self.pm.hook.interlayer_load_problem.get_hookimpls()):
             with blame(impl.plugin_name, "problem loader (interlayer_load_problem)"):
                 problem = impl.function(path=path, params=params, seed=seed)
-            if problem is not None:
-                return problem
+                if problem is not None:
+                    from .contracts import problem as checked
+
+                    return checked(problem)
         return None
 
     def on_event(self, event):

@@ -73,9 +73,10 @@ class Geometry(Protocol):
     snapshot, "steps": [{"action", "args", "segments"}, ...]}``, one entry per plan step) and
     ``validate(plan, trajectory) -> list of violations`` (used by ``interlayer validate``) and
     ``moved(before, after) -> set of object names`` (the objects whose pose differs between two
-    worlds: TryRefine then skips backtracking that cannot move an obstruction, see ``Refiner``). A
-    geometry with a ``cartesian`` attribute gets the motion planner named by ``planner.cartesian``
-    there, for its straight-line end-effector segments."""
+    worlds, and ``ROBOT_MOVED`` when the robot's own configuration does: TryRefine then skips
+    backtracking that cannot move an obstruction, see ``Refiner``). A geometry with a ``cartesian``
+    attribute gets the motion planner named by ``planner.cartesian`` there, for its straight-line
+    end-effector segments."""
 
     def initial_world(self) -> Any:
         """The low-level state at the start: any value; worlds are never mutated, only replaced."""
@@ -87,6 +88,17 @@ class Geometry(Protocol):
 
     def snapshot(self, world: Any) -> dict:
         """A JSON-able picture of ``world`` (written into failure events and drawn by visualizers)."""
+
+
+class _RobotMoved:
+    """What ``Geometry.moved`` returns, beside object names, when the robot itself moved (its base,
+    arms, grippers): not a string, so that no object's name can be mistaken for it."""
+
+    def __repr__(self):
+        return "ROBOT_MOVED"
+
+
+ROBOT_MOVED = _RobotMoved()
 
 
 class PoseGenerator:
@@ -188,10 +200,11 @@ class Refiner:
     a plan whose every step refines is never cut off; the loop raises it at every epoch.
 
     Backjumping (error-free mode, geometries with ``moved``): when every candidate of a step failed
-    on obstructions by objects that no step of this call has moved, other instantiations of the
-    earlier steps leave those objects where they are, so the call ends there instead of
-    re-refining them; the partial pass that follows learns the obstructions. Partial mode keeps
-    the paper's full backtracking."""
+    on obstructions by objects that no step of this call has moved, and no step of it moved the
+    robot (whose pose is where the failed motions started), other instantiations of the earlier
+    steps leave those objects where they are and start the step from the same pose, so the call
+    ends there instead of re-refining them; the partial pass that follows learns the obstructions.
+    Partial mode keeps the paper's full backtracking."""
 
     def __init__(self, geometry, motion, make_generator, max_attempts: int, out_of_time, on_attempt=None, stats=None):
         from .trace import Stats
@@ -209,9 +222,12 @@ class Refiner:
 
     def _futile(self, blocked, start, world) -> bool:
         """Backtracking cannot help: the exhausted step's failures were all obstructions (``blocked``
-        names the objects) and no step since ``start`` moved any of them."""
+        names the objects) and no step since ``start`` moved any of them, nor the robot."""
         moved = getattr(self.geometry, "moved", None)
-        return bool(blocked) and moved is not None and not (blocked & moved(start, world))
+        if not blocked or moved is None:
+            return False
+        changed = moved(start, world)
+        return ROBOT_MOVED not in changed and not (blocked & changed)
 
     def try_refine(self, plan: list[GroundStep], step: int, world0, prefix: dict, partial: bool):
         """Alg. 2. A generator: yields PartialRefinement in partial mode; its return value

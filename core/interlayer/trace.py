@@ -1,8 +1,23 @@
 """Timings and the trace of a run: every decision of the loop, for 'why did it do that?'."""
 from __future__ import annotations
 
+import os
 import time
 from contextlib import contextmanager
+
+_IMPORTED = time.perf_counter()
+
+
+def process_start() -> float:
+    """When this process started, on the ``time.perf_counter`` clock: from ``/proc`` on Linux (the
+    interpreter's start-up and every import included), else when interlayer was imported."""
+    try:
+        with open("/proc/self/stat") as f:
+            after_name = f.read().rsplit(")", 1)[1].split()
+        age = time.clock_gettime(time.CLOCK_BOOTTIME) - int(after_name[19]) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError, AttributeError):  # not Linux
+        return _IMPORTED
+    return time.perf_counter() - max(0.0, age)
 
 
 class Stats:

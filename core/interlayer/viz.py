@@ -25,3 +25,13 @@ def live_view(result, visualizer: str = "meshcat") -> None:
     if not hasattr(viz, "live"):
         raise UserError(f"The visualizer '{visualizer}' has no live view; write a page with 'interlayer viz OUT_DIR'.")
     viz.live(result)
+
+
+def live_stream(visualizer: str = "meshcat", host: str = "127.0.0.1"):
+    """A trace listener streaming the run into the visualizer's live viewer (``plan --viz``): told the
+    problem by ``prepared(problem)``, then every event; ``finish(result)`` shows the result, ``close()``
+    stops its server."""
+    viz = _visualizer(visualizer)
+    if not hasattr(viz, "stream"):
+        raise UserError(f"The visualizer '{visualizer}' has no live view; write a page with 'interlayer viz OUT_DIR'.")
+    return viz.stream(host=host)

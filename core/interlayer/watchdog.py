@@ -4,7 +4,8 @@ Alg. 1 resets (clears learned facts, reseeds the generators) whenever no partial
 to a solvable state. Plugin mistakes make that cycle spin without end: a pose generator that
 yields nothing, a failure kind that no ``learn`` template translates, generators that ignore their
 ``rng`` so every epoch repeats the last. ``ProgressWatch`` notices these and raises ``NoProgress``
-with a sentence naming the culprit; the loop ends the run ``unsolvable`` with that reason.
+with a sentence naming the culprit; the loop ends the run ``gave_up`` with that reason (not
+``unsolvable``: nothing was proved).
 """
 from __future__ import annotations
 

@@ -25,7 +25,6 @@ def interlayer_register_domains(registry):
 
 @hookimpl
 def interlayer_register_pose_generators(registry):
-    from .samplers import ClutterSampler
-
-    registry.add("clutter:pick", ClutterSampler, "clutter: base pose + side grasp (move_base folded in), fewest objects in the way first")
-    registry.add("clutter:place", ClutterSampler, "clutter: a free table spot far from the target and others + base pose, by IK")
+    sampler = "interlayer_clutter.samplers:ClutterSampler"  # imported when selected
+    registry.add("clutter:pick", sampler, "clutter: base pose + side grasp (move_base folded in), fewest objects in the way first")
+    registry.add("clutter:place", sampler, "clutter: a free table spot far from the target and others + base pose, by IK")

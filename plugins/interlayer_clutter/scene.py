@@ -1,4 +1,4 @@
-"""The paper's cluttered table (Clutter-N, BENCHMARKS.md section 2): the scene generator."""
+"""The paper's cluttered table (Clutter-N, docs/benchmarks.md): the scene generator."""
 from __future__ import annotations
 
 import math

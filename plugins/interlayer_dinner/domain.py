@@ -1,11 +1,11 @@
 """The Dinner domain's task-level model: a compact STRIPS encoding that cost-optimal planners solve in
-well under a second at N = 6 (DESIGN.md section 4).
+well under a second at N = 6 (measured during the design).
 
 Objects: the cups and bowls (``obj``), both arms, two rooms, locations: surfaces (the tables ``side`` /
 ``dinner`` where the tray stands, one place setting ``set_<obj>`` per object: fixed references, never
 symbolic free spots) and ``tray``, which is in a room while it stands on a table there. Which of the
-tray's slots an object goes to is the pose generator's choice (DESIGN.md section 4: symbolic choices
-of spots blow optimal planning up). Objects stack only on the tray (where stacking helps: a stack rides
+tray's slots an object goes to is the pose generator's choice (symbolic choices of
+spots blow optimal planning up). Objects stack only on the tray (where stacking helps: a stack rides
 along); nothing stacks on a stacked object.
 Driving within a room is part of each manipulation step's refinement (the base drives to a sampled
 pose, then the arm moves); moving between rooms is ``go`` and costs 100; everything else costs 1.

@@ -1,4 +1,4 @@
-"""Registers the Dinner-N domain (BENCHMARKS.md section 2, the paper's Sec. V-C) and its pose generators."""
+"""Registers the Dinner-N domain (the paper's Sec. V-C; docs/dinner.md) and its pose generators."""
 from interlayer import hookimpl
 
 PARAMS = {"objects": 4, "handoff": False, "side_costs": False}
@@ -56,14 +56,14 @@ def interlayer_register_domains(registry):
 
 @hookimpl
 def interlayer_register_pose_generators(registry):
-    from . import generators
+    generators = "interlayer_dinner.generators:"  # imported when selected
 
-    registry.add("dinner:go", generators.go, "a base pose in the other room (jittered), reached through the doorway")
-    registry.add("dinner:pick", generators.pick, "base pose + grasp of the object (pick, take off the tray, unstack), by IK")
-    registry.add("dinner:place", generators.place,
+    registry.add("dinner:go", generators + "go", "a base pose in the other room (jittered), reached through the doorway")
+    registry.add("dinner:pick", generators + "pick", "base pose + grasp of the object (pick, take off the tray, unstack), by IK")
+    registry.add("dinner:place", generators + "place",
                  "base pose + put-down at the fixed place (setting, a free tray slot, on top of the lower object), by IK")
-    registry.add("dinner:pick_tray", generators.pick_tray, "base pose facing the tray + both hands on its near edge")
-    registry.add("dinner:place_tray", generators.place_tray,
+    registry.add("dinner:pick_tray", generators + "pick_tray", "base pose facing the tray + both hands on its near edge")
+    registry.add("dinner:place_tray", generators + "place_tray",
                  "the base pose that puts the carried tray at its spot on the table, and both hands' retreats")
-    registry.add("dinner:handoff", generators.handoff,
+    registry.add("dinner:handoff", generators + "handoff",
                  "a hand-over pose in front of the robot, the other hand's grasp there (IK) and the first hand's retreat")

@@ -1,4 +1,4 @@
-"""The Dinner-N scene (BENCHMARKS.md section 2): two rooms joined by a doorway, a side table in room A
+"""The Dinner-N scene (docs/dinner.md): two rooms joined by a doorway, a side table in room A
 with N cups and bowls (equal numbers, random positions, random names) and a tray, a dinner table in
 room B with N place settings.
 

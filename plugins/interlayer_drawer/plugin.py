@@ -1,4 +1,4 @@
-"""Registers the Drawer (O) / (N) domain (BENCHMARKS.md section 2) and its pose generators."""
+"""Registers the Drawer (O) / (N) domain (the paper's Sec. V-A; docs/drawer.md) and its pose generators."""
 from interlayer import hookimpl
 
 PARAMS = {"variant": "O"}
@@ -48,9 +48,9 @@ def interlayer_register_domains(registry):
 
 @hookimpl
 def interlayer_register_pose_generators(registry):
-    from . import generators
+    generators = "interlayer_drawer.generators:"  # imported when selected
 
-    registry.add("drawer:move_base", generators.move_base, "base poses reaching the drawer's handle; else pr2:move_base")
-    registry.add("drawer:open_drawer", generators.open_drawer,
+    registry.add("drawer:move_base", generators + "move_base", "base poses reaching the drawer's handle; else pr2:move_base")
+    registry.add("drawer:open_drawer", generators + "open_drawer",
                  "random pull distances (stratified within the joint's limits), straight pull on the handle by IK")
-    registry.add("drawer:pick", generators.pick, "pr2:pick, once the object in the drawer is exposed for a top grasp")
+    registry.add("drawer:pick", generators + "pick", "pr2:pick, once the object in the drawer is exposed for a top grasp")

@@ -1,4 +1,4 @@
-"""The Drawer (O) / Drawer (N) scene (BENCHMARKS.md section 2): a cabinet with one drawer, an object
+"""The Drawer (O) / Drawer (N) scene (docs/drawer.md): a cabinet with one drawer, an object
 in the drawer, a second object on a low stand in front of it, a side table to put things on.
 
 World frame: the PR2 starts at the origin facing +x. The cabinet's front is at x = FRONT, centred on

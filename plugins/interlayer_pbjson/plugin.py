@@ -15,9 +15,9 @@ def interlayer_load_problem(path, params, seed):
 
 @hookimpl
 def interlayer_register_pose_generators(registry):
-    from .samplers import PBSampler, go_home
+    samplers = "interlayer_pbjson.samplers:"  # imported when selected
 
-    registry.add("pbjson:pick", PBSampler, "pybullet-planning files: Clutter's pick (base pose + grasp, fewest objects in the way first)")
-    registry.add("pbjson:place", PBSampler, "pybullet-planning files: a stable spot on the step's surface or region, "
+    registry.add("pbjson:pick", samplers + "PBSampler", "pybullet-planning files: Clutter's pick (base pose + grasp, fewest objects in the way first)")
+    registry.add("pbjson:place", samplers + "PBSampler", "pybullet-planning files: a stable spot on the step's surface or region, "
                                             "or the goal pose, + base pose, by IK")
-    registry.add("pbjson:go_home", go_home, "pybullet-planning files: the robot's start configuration (goal_config)")
+    registry.add("pbjson:go_home", samplers + "go_home", "pybullet-planning files: the robot's start configuration (goal_config)")

@@ -327,7 +327,7 @@ def draw_scene(geometry, scene, world=None) -> dict:
         cx, cy = (xmin + xmax) / 2, (ymin + ymax) / 2
         names[loc] = scene.box(f"regions/{loc}/area", (xmax - xmin, ymax - ymin, 0.003), [cx, cy, top + 0.0015],
                                COLORS["region"])
-        scene.label(f"regions/{loc}/label", loc, [cx, cy, top + 0.01], height=0.035)
+        scene.label(f"regions/{loc}/label", loc, [cx, cy, top + 0.01], height=0.035, priority=1)
 
     q = state.q()
     poses = state.object_poses(q)
@@ -340,7 +340,7 @@ def draw_scene(geometry, scene, world=None) -> dict:
             color = COLORS["movable"][others % len(COLORS["movable"])]
             others += 1
         sn, h = _add_shape(scene, f"{name}/shape", spec, color)
-        scene.label(f"{name}/label", name, [0, 0, h / 2 + 0.03], height=0.035)
+        scene.label(f"{name}/label", name, [0, 0, h / 2 + 0.03], height=0.035, priority=2 if name == target else 0)
         T = poses.get(name)
         if T is None and spec is not None:
             T = _mat(getattr(spec, "pose", None))

@@ -89,9 +89,9 @@ def interlayer_register_domains(registry):
 
 @hookimpl
 def interlayer_register_pose_generators(registry):
-    from . import generators
+    generators = "interlayer_pr2.generators:"  # imported when selected
 
-    registry.add("pr2:move_base", generators.move_base, "base poses in an annulus around the object or put-down spot")
-    registry.add("pr2:pick", generators.pick, "side (and top) grasps with pre-grasp and raise waypoints, by IK")
-    registry.add("pr2:place", generators.place, "the put-down spot chosen by move_base and nearby variants, by IK")
+    registry.add("pr2:move_base", generators + "move_base", "base poses in an annulus around the object or put-down spot")
+    registry.add("pr2:pick", generators + "pick", "side (and top) grasps with pre-grasp and raise waypoints, by IK")
+    registry.add("pr2:place", generators + "place", "the put-down spot chosen by move_base and nearby variants, by IK")
 

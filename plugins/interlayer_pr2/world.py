@@ -20,7 +20,7 @@ import numpy as np
 from interlayer import deadline as deadlines
 from interlayer.motion import BLOCK as FINE_BLOCK
 from interlayer.motion import Clearance, ConfigSpace, InterpolatingPlanner, MotionQuery, points_valid
-from interlayer.refine import Failure, StepOutcome
+from interlayer.refine import ROBOT_MOVED, Failure, StepOutcome
 from interlayer.trace import Stats
 
 from .plugin import TIMING  # defaults, overridden by the problem keys of the same names (layout.extra)
@@ -180,11 +180,14 @@ class PR2Geometry:
         return world.to_json()
 
     def moved(self, before: World, after: World) -> set:
-        """Objects whose pose differs between two worlds (picked up or put down in between), and
-        articulated bodies whose joints do."""
+        """Objects whose pose differs between two worlds (picked up or put down in between),
+        articulated bodies whose joints do, and ``ROBOT_MOVED`` if the PR2's base, arms or grippers do."""
         out = set()
         for a, b in ((before.objects, after.objects), (before.joints, after.joints)):
             out |= {o for o in a.keys() | b.keys() if o not in a or o not in b or not np.array_equal(a[o], b[o])}
+        if (not np.array_equal(before.base, after.base) or before.grippers != after.grippers
+                or any(not np.array_equal(before.arms[a], after.arms[a]) for a in before.arms)):
+            out.add(ROBOT_MOVED)
         return out
 
     def config(self, world: World) -> np.ndarray:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import importlib.metadata
 import json
+import math
 import os
 import re
 import struct
@@ -144,6 +145,14 @@ def test_command_log_keeps_final_state_only():
     assert s.bounds()[0].shape == (3,)
 
 
+def _track(clip, name):
+    """(times, values) of a clip's track: float32 arrays as the page carries them."""
+    t = next(t for t in clip["tracks"] if t["name"] == name)
+    values = np.frombuffer(t["values"].data, "<f4")
+    times = np.frombuffer(t["times"].data, "<f4")
+    return times, values.reshape(len(times), -1)
+
+
 def test_animation_tracks_hold_unmentioned_poses():
     s = Scene()
     s.box("a", 0.1)
@@ -157,13 +166,50 @@ def test_animation_tracks_hold_unmentioned_poses():
     by_path = {a["path"]: a["clip"] for a in cmd["animations"]}
     assert set(by_path) == {"/meshcat/a", "/meshcat/b"}
     assert all(clip["fps"] == 20 for clip in by_path.values())
-    pos_b = [t for t in by_path["/meshcat/b"]["tracks"] if t["name"] == ".position"][0]
-    times = [k["time"] for k in pos_b["keys"]]
-    assert times == [0, 9, 10, 19]                    # ends of the constant runs only
-    assert np.allclose(pos_b["keys"][1]["value"], [5, 0, 0]) and np.allclose(pos_b["keys"][2]["value"], [5, 1, 0])
-    pos_a = [t for t in by_path["/meshcat/a"]["tracks"] if t["name"] == ".position"][0]
-    assert len(pos_a["keys"]) == 20 and np.allclose(pos_a["keys"][-1]["value"], [1.9, 0, 0])
+    times, values = _track(by_path["/meshcat/b"], ".position")
+    assert times.tolist() == [0, 9, 10, 19]           # ends of the constant runs only
+    assert np.allclose(values[1], [5, 0, 0]) and np.allclose(values[2], [5, 1, 0])
+    times, values = _track(by_path["/meshcat/a"], ".position")
+    assert len(times) == 20 and np.allclose(values[-1], [1.9, 0, 0])
     assert cmd["options"]["loopMode"] == 2201 and cmd["options"]["repetitions"] == float("inf")
+
+
+def test_animation_keyframes_within_a_tolerance():
+    """With a tolerance the page keeps only the keyframes interpolation needs: a straight line is two
+    keys, a turning object keeps enough keys to stay within the angle, and a corner is kept exactly."""
+    s = Scene()
+    s.box("line", 0.1)
+    s.box("turn", 0.1)
+    s.box("corner", 0.1)
+    n = 200
+    frames = []
+    for i in range(n):
+        a = math.pi * (i / (n - 1)) ** 2                # half a turn about z, speeding up
+        Rz = np.eye(4)
+        Rz[:2, :2] = [[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]]
+        frames.append({"line": [0.01 * i, 0, 0], "turn": Rz,
+                       "corner": [min(i, 100) * 0.01, max(0, i - 100) * 0.01, 0]})
+    s.animate(frames, fps=20, tolerance=(0.002, 0.01))
+    cmd = [c for c in s.commands() if c["type"] == "set_animation"][-1]
+    clips = {a["path"]: a["clip"] for a in cmd["animations"]}
+    assert _track(clips["/meshcat/line"], ".position")[0].tolist() == [0, n - 1]
+    times, values = _track(clips["/meshcat/corner"], ".position")
+    assert times.tolist() == [0, 100, n - 1] and np.allclose(values[1], [1.0, 0, 0])
+    times, q = _track(clips["/meshcat/turn"], ".quaternion")
+    assert 10 < len(times) < n // 2
+    # replay the kept keys as three.js does (slerp) and compare with every frame's rotation
+    t = np.arange(n)
+    k = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 2)
+    u = (t - times[k]) / (times[k + 1] - times[k])
+    q0, q1 = q[k], q[k + 1]
+    th = np.arccos(np.clip(np.sum(q0 * q1, axis=1), -1, 1))[:, None]
+    qi = (np.sin((1 - u[:, None]) * th) * q0 + np.sin(u[:, None] * th) * q1) / np.sin(th)
+    yaw = 2 * np.arctan2(qi[:, 2], qi[:, 3])
+    assert np.abs(yaw - math.pi * (t / (n - 1)) ** 2).max() < 0.01
+    # without a tolerance every changing frame stays
+    s.animate(frames, fps=20)
+    cmd = [c for c in s.commands() if c["type"] == "set_animation"][-1]
+    assert len(_track({a["path"]: a["clip"] for a in cmd["animations"]}["/meshcat/line"], ".position")[0]) == n
 
 
 def _erd(rel: str) -> Path:
@@ -287,8 +333,9 @@ def test_html_page_helpers():
 # ------------------------------------------------------------------ rendering
 def test_boxes_page_renders_and_animates(tmp_path, need_chromium):
     p = boxes_scene(autoplay=True).write_html(tmp_path / "boxes.html")
-    early = browser.screenshot(p, tmp_path / "early.png", budget_ms=300)
-    late = browser.screenshot(p, tmp_path / "late.png", budget_ms=1500)   # 3/4 of the way
+    # the frames at 0.3 s and 1.5 s (3/4 of the way), set by the test: no race with the page's clock
+    early = browser.screenshot(browser.paused_at(p, 0.3, tmp_path / "early.html"), tmp_path / "early.png")
+    late = browser.screenshot(browser.paused_at(p, 1.5, tmp_path / "late.html"), tmp_path / "late.png")
     for png in (early, late):
         assert not browser.is_blank(png)
         img = browser.read_png(png)
@@ -361,6 +408,33 @@ def test_embedded_views_render(tmp_path, need_chromium):
     assert red_mask(views[0]).mean() > 0.003
     assert blue_mask(views[1]).mean() > 0.02
     assert blue_mask(views[2]).mean() > 0.02
+
+
+def test_crowded_labels_do_not_overlap(tmp_path, need_chromium):
+    """40 labelled cans packed on a table: every label is on the page, the tags shown in full do not
+    overlap (the rest are dots with the name on hover), and the high-priority one is shown in full."""
+    s = Scene("crowded")
+    s.box("table", (0.8, 0.8, 0.05), [0, 0, -0.03], "brown")
+    for i in range(40):
+        x, y = -0.3 + 0.1 * (i % 7), -0.3 + 0.1 * (i // 7)
+        s.cylinder(f"o{i}/shape", 0.03, 0.12, None, "blue")
+        s.label(f"o{i}/label", f"object{i}", [0, 0, 0.09], priority=2 if i == 23 else 0)
+        s.set_pose(f"o{i}", [x, y, 0.06])
+    page = s.write_html(tmp_path / "crowded.html")
+    boxes = browser.evaluate(page, """function () {
+      return Array.prototype.map.call(document.querySelectorAll(".il-label"), function (e) {
+        var b = e.getBoundingClientRect();
+        return [e.textContent, e.classList.contains("il-dot"), b.left, b.top, b.right, b.bottom, e.style.display];
+      });
+    }""")
+    assert sorted(b[0] for b in boxes) == sorted(f"object{i}" for i in range(40))
+    shown = [b for b in boxes if not b[1] and b[6] != "none"]
+    dots = [b for b in boxes if b[1]]
+    assert len(shown) >= 8 and dots, (len(shown), len(dots))
+    assert "object23" in [b[0] for b in shown]
+    for i, a in enumerate(shown):
+        for b in shown[i + 1:]:
+            assert not (a[2] < b[4] and b[2] < a[4] and a[3] < b[5] and b[3] < a[5]), (a, b)
 
 
 def test_live_viewer_loopback(tmp_path, capfd):

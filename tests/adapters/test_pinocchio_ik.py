@@ -22,18 +22,35 @@ def pose_error(a, b):
     return float(np.linalg.norm(a[:3, 3] - b[:3, 3])), float(np.linalg.norm(pin.log3(rel.rotation)))
 
 
+@pytest.fixture
+def seeds_tried(monkeypatch):
+    """Counts the seeds IK descends from (calls of ArmIK.clik): its work, whatever the machine's speed."""
+    from interlayer_pinocchio import ik
+
+    count = [0]
+    clik = ik.ArmIK.clik
+
+    def counted(self, *args, **kwargs):
+        count[0] += 1
+        return clik(self, *args, **kwargs)
+
+    monkeypatch.setattr(ik.ArmIK, "clik", counted)
+    return count
+
+
 @pytest.mark.parametrize("arm", ["left", "right"])
-def test_ik_round_trip(robot, arm):
+def test_ik_round_trip(robot, arm, seeds_tried):
     rng = np.random.default_rng(11 if arm == "left" else 12)
     group = robot.group(f"{arm}_arm")
-    failures, times = 0, []
+    failures, times, seeds = 0, [], []
     for _ in range(150):
         q_target = robot.random_q(rng, groups=("base", f"{arm}_arm"))
         target = robot.tool_pose(q_target, arm)
         q_start = robot.random_q(rng, q=q_target, groups=(f"{arm}_arm",))  # same base, other arm conf
-        t = time.perf_counter()
+        t, seeds_tried[0] = time.perf_counter(), 0
         solution = solve_ik(robot, arm, target, q_start, rng)
         times.append(time.perf_counter() - t)
+        seeds.append(seeds_tried[0])
         if solution is None:
             failures += 1
             continue
@@ -43,9 +60,9 @@ def test_ik_round_trip(robot, arm):
         pos, rot = pose_error(robot.tool_pose(group.set(q_start, solution), arm), target)
         assert pos <= 1e-3 and rot <= math.radians(1.0)
     print(f"\n{arm}: {failures}/150 failures, median {np.median(times) * 1e3:.2f} ms, "
-          f"mean {np.mean(times) * 1e3:.2f} ms, max {np.max(times) * 1e3:.1f} ms")
+          f"mean {np.mean(times) * 1e3:.2f} ms, max {np.max(times) * 1e3:.1f} ms; seeds: mean {np.mean(seeds):.2f}")
     assert failures <= 3
-    assert np.median(times) < 5e-3
+    assert np.median(seeds) <= 2 and np.mean(seeds) < 3  # mostly the first seed (the start) converges
 
 
 def test_ik_prefers_current_configuration(robot):
@@ -69,13 +86,12 @@ def test_ik_tracks_base_and_torso(robot):
     assert pos <= 1e-3 and rot <= math.radians(1.0)
 
 
-def test_unreachable_target_fails_fast(robot):
+def test_unreachable_target_fails_fast(robot, seeds_tried):
     q = robot.default_q()
     far = np.eye(4)
     far[:3, 3] = (3.0, 0.0, 1.0)
-    t = time.perf_counter()
     assert solve_ik(robot, "left", far, q, np.random.default_rng(0)) is None
-    assert time.perf_counter() - t < 5e-3
+    assert seeds_tried[0] == 0  # refused by the reach test, before any descent
 
 
 def test_ik_with_world_rejects_collisions_unless_ignored(robot):

@@ -322,8 +322,7 @@ def test_timing_report(robot):
         for v in values:
             is_valid(v)
         report[f"checker_for({group})"] = (time.perf_counter() - t) / len(values)
-    print("\n" + ", ".join(f"{k}: {v * 1e6:.1f} us" for k, v in report.items()))
-    assert full < 1e-3
+    print("\n" + ", ".join(f"{k}: {v * 1e6:.1f} us" for k, v in report.items()))  # a report: no speed gate
 
 
 def test_motion_bound_bounds_how_far_any_body_moves(robot):

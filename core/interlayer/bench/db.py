@@ -1,7 +1,14 @@
-"""The results database: SQLite in WAL mode, one row per run, committed as each run finishes."""
+"""The results database: SQLite in WAL mode, one row per run, committed as each run finishes.
+
+Several coordinators may share one database: each claims a run (table ``claims``, in a transaction
+that also checks ``runs``) before it starts it, so no run is made twice; a claim whose coordinator
+is gone (its process on this host has ended) is taken over."""
 from __future__ import annotations
 
+import datetime
 import json
+import os
+import socket
 import sqlite3
 from pathlib import Path
 
@@ -11,10 +18,11 @@ SCHEMA = """
 CREATE TABLE IF NOT EXISTS runs (
     suite TEXT NOT NULL, row TEXT NOT NULL, combo TEXT NOT NULL, seed INTEGER NOT NULL, time_limit REAL NOT NULL,
     config TEXT NOT NULL, overrides TEXT NOT NULL,      -- the config path and the JSON list of --set overrides
-    status TEXT NOT NULL, reason TEXT NOT NULL,         -- solved unsolvable timeout error invalid killed
+    status TEXT NOT NULL, reason TEXT NOT NULL,         -- solved unsolvable gave_up timeout error invalid killed
     time_total REAL, wall_time REAL, times TEXT,        -- the planner's total, the process's wall time, the split (JSON)
     plan_length INTEGER, plan_cost REAL, replans INTEGER, task_planner_calls INTEGER,
     peak_memory_mb REAL, versions TEXT, host TEXT, started TEXT, finished TEXT,
+    wall TEXT,                                          -- the wait's parts: start-up, planning, export, ... (JSON)
     PRIMARY KEY (suite, row, combo, seed, time_limit)
 );
 CREATE TABLE IF NOT EXISTS rows (
@@ -23,11 +31,18 @@ CREATE TABLE IF NOT EXISTS rows (
     paper TEXT NOT NULL,                                -- the published numbers for this row (JSON), if any
     PRIMARY KEY (suite, row)
 );
+CREATE TABLE IF NOT EXISTS claims (                     -- runs started and not yet recorded in runs
+    suite TEXT NOT NULL, row TEXT NOT NULL, combo TEXT NOT NULL, seed INTEGER NOT NULL, time_limit REAL NOT NULL,
+    host TEXT NOT NULL, pid INTEGER NOT NULL, claimed TEXT NOT NULL,  -- the coordinator that runs it, and since when
+    PRIMARY KEY (suite, row, combo, seed, time_limit)
+);
 """
+KEY_COLUMNS = ("suite", "row", "combo", "seed", "time_limit")
+_WHERE_KEY = " AND ".join(f"{c} = ?" for c in KEY_COLUMNS)
 RUN_COLUMNS = ("suite", "row", "combo", "seed", "time_limit", "config", "overrides", "status", "reason", "time_total",
                "wall_time", "times", "plan_length", "plan_cost", "replans", "task_planner_calls", "peak_memory_mb",
-               "versions", "host", "started", "finished")
-JSON_COLUMNS = ("overrides", "times", "versions")
+               "versions", "host", "started", "finished", "wall")
+JSON_COLUMNS = ("overrides", "times", "versions", "wall")
 
 
 def connect(path, create: bool = True) -> sqlite3.Connection:
@@ -37,9 +52,11 @@ def connect(path, create: bool = True) -> sqlite3.Connection:
     if create:
         path.parent.mkdir(parents=True, exist_ok=True)
     try:
-        con = sqlite3.connect(path, timeout=30)
+        con = sqlite3.connect(path, timeout=30, check_same_thread=False)  # a coordinator's threads claim runs
         con.execute("PRAGMA journal_mode=WAL")
         con.executescript(SCHEMA)
+        if "wall" not in {r[1] for r in con.execute("PRAGMA table_info(runs)")}:  # a database from before
+            con.execute("ALTER TABLE runs ADD COLUMN wall TEXT")
     except sqlite3.DatabaseError as exc:
         raise UserError(f"{path} is not an Interlayer results database ({exc}); give another --db path.") from None
     con.row_factory = sqlite3.Row
@@ -58,11 +75,77 @@ def record_rows(con, suite: str, rows) -> None:
 
 
 def record_run(con, run: dict) -> None:
-    """One run, in its own transaction: an interrupted sweep never leaves half a row."""
+    """One run, in its own transaction with the end of its claim: an interrupted sweep never leaves half a row."""
     values = [json.dumps(run.get(c)) if c in JSON_COLUMNS else run.get(c) for c in RUN_COLUMNS]
     with con:
         con.execute(f"INSERT OR REPLACE INTO runs ({', '.join(RUN_COLUMNS)}) VALUES ({', '.join('?' * len(RUN_COLUMNS))})",
                     values)
+        con.execute(f"DELETE FROM claims WHERE {_WHERE_KEY}", [run[c] for c in KEY_COLUMNS])
+
+
+def me() -> tuple:
+    """This coordinator, as a claim names it: (host, pid)."""
+    return socket.gethostname(), os.getpid()
+
+
+def claim(con, key: tuple, claimer: tuple):
+    """Claim the run ``key`` (suite, row, combo, seed, time_limit) for ``claimer`` (host, pid), atomically:
+    None if it is now the claimer's; "finished" if the database holds it; else the (host, pid) of the
+    running coordinator that claimed it first."""
+    con.execute("BEGIN IMMEDIATE")  # the write lock from the first read: two claimers cannot both see it free
+    try:
+        if con.execute(f"SELECT 1 FROM runs WHERE {_WHERE_KEY}", key).fetchone():
+            holder = "finished"
+        else:
+            row = con.execute(f"SELECT host, pid, claimed FROM claims WHERE {_WHERE_KEY}", key).fetchone()
+            holder = (row[0], row[1]) if row is not None else None
+            if holder is not None and (holder == tuple(claimer) or not _running(*holder, row[2])):
+                holder = None  # ours already, or its coordinator is gone: retaken
+            if holder is None:
+                now = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+                con.execute("INSERT OR REPLACE INTO claims VALUES (?, ?, ?, ?, ?, ?, ?, ?)", (*key, *claimer, now))
+        con.commit()
+    except BaseException:
+        con.rollback()
+        raise
+    return holder
+
+
+def release(con, claimer: tuple) -> None:
+    """Drop ``claimer``'s claims of runs it did not finish (an interrupted sweep): others may take them."""
+    with con:
+        con.execute("DELETE FROM claims WHERE host = ? AND pid = ?", tuple(claimer))
+
+
+def _running(host: str, pid: int, claimed: str) -> bool:
+    """Whether the coordinator (host, pid) that claimed a run at ``claimed`` may still run: not if no
+    process has its pid, or if the one that has it started after the claim (the pid was reused). A
+    process of another host cannot be asked."""
+    if host != socket.gethostname():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # alive, someone else's
+        pass
+    started = _start_time(pid)
+    try:
+        claim_time = datetime.datetime.fromisoformat(claimed).timestamp()
+    except (TypeError, ValueError):
+        return True
+    return started is None or started <= claim_time + 2  # claim times are whole seconds, boot time too
+
+
+def _start_time(pid: int) -> float | None:
+    """When process ``pid`` started, in seconds since the epoch (Linux's /proc); None if unknown."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        boot = next(int(line.split()[1]) for line in Path("/proc/stat").read_text().splitlines()
+                    if line.startswith("btime "))
+        return boot + int(fields[19]) / os.sysconf("SC_CLK_TCK")  # field 22, starttime, in clock ticks
+    except (OSError, ValueError, IndexError, StopIteration):
+        return None
 
 
 def load(con) -> tuple[list[dict], list[dict]]:

@@ -12,7 +12,7 @@ from pathlib import Path
 from . import db
 
 BEGIN, END = "<!-- BENCH-REPORT BEGIN -->", "<!-- BENCH-REPORT END -->"
-FAILED = ("unsolvable", "timeout", "error", "invalid", "killed")
+FAILED = ("unsolvable", "gave_up", "timeout", "error", "invalid", "killed")
 
 
 def _fmt(x, digits=1) -> str:
@@ -44,9 +44,12 @@ def _ordered(rows, groups):
     return sorted(keys + missing, key=lambda k: (k[0], position.get(k[:2], 1e9)))
 
 
-def _label(key, groups) -> str:
-    """The row's name, with the combination and the time limit when the database holds several."""
+def _label(key, groups, suite: bool = True) -> str:
+    """The row's name, with its suite when several suites have a row of that name, the combination
+    and the time limit when the database holds several."""
     label = key[1]
+    if suite and len({k[0] for k in groups if k[1] == key[1]}) > 1:
+        label = f"{key[0]}: {label}"
     if len({k[2] for k in groups}) > 1:
         label += f" [{key[2]}]"
     if len({k[3] for k in groups if k[0] == key[0]}) > 1:
@@ -78,7 +81,7 @@ def table1(runs, rows) -> list:
             for r in rs:
                 if r["status"] != "solved":
                     fails[r["status"]] += 1
-            lines.append([_label(key, groups), str(len(rs)), _fmt(100 * len(ok) / len(rs), 0), _fmt(p_solved, 0),
+            lines.append([_label(key, groups, suite=False), str(len(rs)), _fmt(100 * len(ok) / len(rs), 0), _fmt(p_solved, 0),
                           f"{_fmt(mean)} / {_fmt(_median(times))}", _fmt(p_mean, 0),
                           _fmt(mean / p_mean, 3) if mean is not None and p_mean else "-",
                           f"{_fmt(_median([r['plan_length'] for r in ok]), 0)} / "
@@ -129,13 +132,26 @@ def split_table(runs) -> tuple[list, dict]:
         label = _label(key, groups)
         data[label] = {c: _mean([(r["times"] or {}).get(c, 0.0) for r in ok]) for c in cats}
         lines.append([label, *(_fmt(_median([(r["times"] or {}).get(c, 0.0) for r in ok]), 2) for c in cats),
-                      _fmt(_median([r["time_total"] for r in ok]), 2), *(_median_max([r[k] for r in ok]) for k in
-                      ("task_planner_calls", "replans")), _fmt(max((r["peak_memory_mb"] or 0) for r in ok), 0)])
+                      _fmt(_median([r["time_total"] for r in ok]), 2),
+                      *(_fmt(_median(xs), 2) if xs else "-" for xs in (_wall(ok, k) for k, _ in WAIT)),
+                      *(_median_max([r[k] for r in ok]) for k in ("task_planner_calls", "replans")),
+                      _fmt(max((r["peak_memory_mb"] or 0) for r in ok), 0)])
     if not lines:
         return [], data
-    return [("h2", "Where the time goes (medians over the solved runs, s) and the loop's effort"),
-            ("table", ["problem", *(c.replace("_", " ") for c in cats), "total", "task-planner calls (median / max)",
-                       "replans (median / max)", "peak memory (max, MB)"], lines)], data
+    return [("h2", "Where the time goes (medians over the solved runs, s): the planner's categories and total, then "
+                   "the wait around it (the run's process: start-up, trajectory export, writing; then the validator's "
+                   "process), and the loop's effort"),
+            ("table", ["problem", *(c.replace("_", " ") for c in cats), "total", *(h for _, h in WAIT),
+                       "task-planner calls (median / max)", "replans (median / max)", "peak memory (max, MB)"], lines)], data
+
+
+# The wait beside the planner's time: (key of the run's ``wall``, column heading)
+WAIT = (("startup", "start-up"), ("export", "export"), ("writing", "writing"), ("process", "process wall"),
+        ("validation", "validation process"))
+
+
+def _wall(runs, key) -> list:
+    return [r["wall"][key] for r in runs if (r.get("wall") or {}).get(key) is not None]
 
 
 def _median_max(xs) -> str:

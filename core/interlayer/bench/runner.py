@@ -22,7 +22,7 @@ from . import db
 from ..errors import UserError
 from .suite import Suite, mark_skipped
 
-STATUSES = ("solved", "unsolvable", "timeout", "error", "invalid", "killed")
+STATUSES = ("solved", "unsolvable", "gave_up", "timeout", "error", "invalid", "killed")
 DEFAULT_MEMORY_MB = 4096
 
 _live: set = set()  # worker processes running now (killed on Ctrl-C)
@@ -98,9 +98,11 @@ def run_one(spec: dict) -> dict:
         res = _outcome(rc, out, err, over, hard, spec)
         if res.get("status") not in STATUSES:
             res = {"status": "error", "reason": f"the worker reported the unknown status {res.get('status')!r}"}
+        parts = {**(res.get("wall") or {}), "process": round(wall, 3)}  # the run's own split, as seen from here
         if res["status"] == "solved":  # counted only once the independent validator agrees
             vspec = {"validate": out_dir, "memory_mb": spec["memory_mb"]}
-            vrc, vout, verr, _, vover = _isolated(vspec, 60 + hard)
+            vrc, vout, verr, vwall, vover = _isolated(vspec, 60 + hard)
+            parts["validation"] = round(vwall, 3)
             check = _outcome(vrc, vout, verr, vover, 60 + hard, {**spec, **vspec})
             if check["status"] != "valid":
                 res["status"], res["reason"] = "invalid", f"the validator says: {check['reason']}"
@@ -110,7 +112,8 @@ def run_one(spec: dict) -> dict:
             "time_total": times.get("total"), "wall_time": round(wall, 3), "times": times,
             "plan_length": res.get("plan_length"), "plan_cost": res.get("plan_cost"), "replans": res.get("replans"),
             "task_planner_calls": res.get("task_planner_calls"), "peak_memory_mb": res.get("peak_memory_mb"),
-            "versions": res.get("versions"), "host": socket.gethostname(), "started": started, "finished": _now()}
+            "versions": res.get("versions"), "host": socket.gethostname(), "started": started, "finished": _now(),
+            "wall": parts}
 
 
 def plan_runs(suite: Suite, done: set, memory_mb, grace, keep_runs) -> list[dict]:
@@ -133,12 +136,16 @@ def plan_runs(suite: Suite, done: set, memory_mb, grace, keep_runs) -> list[dict
     return specs
 
 
-def _local(specs, jobs):
+def _local(specs, jobs, claim):
+    """Each run as a thread of the pool gets to it, if ``claim(spec)`` (None for a run not claimed)."""
     from concurrent.futures import ThreadPoolExecutor, as_completed  # threads only wait on the run processes
+
+    def claimed_run(spec):
+        return run_one(spec) if claim(spec) else None
 
     pool = ThreadPoolExecutor(max_workers=jobs)
     try:
-        for fut in as_completed([pool.submit(run_one, s) for s in specs]):
+        for fut in as_completed([pool.submit(claimed_run, s) for s in specs]):
             yield fut.result()
     finally:
         with _live_lock:
@@ -202,8 +209,9 @@ class _Progress:
 def run_suite(suite: Suite, db_path, jobs: int | None = None, executor: str = "local",
               memory_mb: float = DEFAULT_MEMORY_MB, grace: float | None = None, keep_runs=None,
               progress: bool = True, log=lambda msg: print(msg, file=sys.stderr, flush=True)) -> dict:
-    """Run every (row, combination, seed) of the suite that the database does not hold yet.
-    Returns {"ran": N, "statuses": {...}, "skipped_rows": {row: why}, "interrupted": bool}."""
+    """Run every (row, combination, seed) of the suite that the database does not hold yet, and that
+    no other running coordinator of the database has claimed. Returns {"ran": N, "statuses": {...},
+    "skipped_rows": {row: why}, "interrupted": bool, "claimed_elsewhere": N}."""
     if executor != "local" and not executor.startswith("dask://"):
         raise UserError(f"Unknown executor '{executor}'; use 'local' or 'dask://HOST:PORT'.")
     con = db.connect(db_path)
@@ -216,17 +224,31 @@ def run_suite(suite: Suite, db_path, jobs: int | None = None, executor: str = "l
     total = sum(len(r.seeds) for r in suite.rows if not r.skipped) * len(suite.combos)
     log(f"suite {suite.name}: {total - len(specs)} of {total} runs already in {db_path}, {len(specs)} to run "
         f"(planner.time_limit {suite.time_limit:g} s)")
-    summary = {"ran": 0, "statuses": {}, "skipped_rows": skipped, "interrupted": False}
+    summary = {"ran": 0, "statuses": {}, "skipped_rows": skipped, "interrupted": False, "claimed_elsewhere": 0}
     if not specs:
         return summary
-    if executor.startswith("dask://"):
+    lock, claimer, elsewhere = threading.Lock(), db.me(), {}
+
+    def claim(spec) -> bool:
+        """Whether this coordinator is to make the run (another may have claimed or finished it)."""
+        with lock:
+            holder = db.claim(con, tuple(spec[c] for c in db.KEY_COLUMNS), claimer)
+        if holder not in (None, "finished"):
+            elsewhere[(spec["row"], spec["combo"], spec["seed"])] = holder
+        return holder is None
+
+    if executor.startswith("dask://"):  # claimed as submitted: the cluster's queue is this coordinator's
+        specs = [s for s in specs if claim(s)]
         results = _dask(specs, "tcp://" + executor[len("dask://"):] if "://" not in executor[7:] else executor[7:])
     else:
-        results = _local(specs, max(1, jobs or os.cpu_count() or 1))
+        results = _local(specs, max(1, jobs or os.cpu_count() or 1), claim)
     bar = _Progress(len(specs), progress)
     try:
         for run in results:
-            db.record_run(con, run)
+            if run is None:  # claimed or finished by another coordinator first
+                continue
+            with lock:
+                db.record_run(con, run)
             summary["ran"] += 1
             summary["statuses"][run["status"]] = summary["statuses"].get(run["status"], 0) + 1
             bar.update(run)
@@ -235,5 +257,11 @@ def run_suite(suite: Suite, db_path, jobs: int | None = None, executor: str = "l
     finally:
         results.close()
         bar.close()
+        with lock:
+            db.release(con, claimer)
         con.close()
+    if elsewhere:
+        holders = sorted({f"pid {pid} on {host}" for host, pid in elsewhere.values()})
+        log(f"{len(elsewhere)} run(s) left to the coordinator(s) that claimed them first ({', '.join(holders)})")
+    summary["claimed_elsewhere"] = len(elsewhere)
     return summary

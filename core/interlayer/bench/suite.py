@@ -24,9 +24,9 @@ import itertools
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .. import shipped
 from ..errors import UserError
 
-SUITES_DIR = Path(__file__).resolve().parents[3] / "benchmarks"  # the source checkout's benchmarks/
 QUICK = {"seeds": "0-1", "time_limit": 60.0}
 
 
@@ -84,10 +84,14 @@ def find_suite(name: str) -> Path:
         if not path.exists():
             raise UserError(f"The suite file {path} does not exist.")
         return path
-    for folder in (Path.cwd() / "benchmarks", SUITES_DIR):
-        if (folder / f"{name}.toml").exists():
-            return folder / f"{name}.toml"
-    known = sorted({p.stem for d in (Path.cwd() / "benchmarks", SUITES_DIR) if d.is_dir() for p in d.glob("*.toml")})
+    local = Path.cwd() / "benchmarks" / f"{name}.toml"  # a suite of the current folder wins over a shipped one
+    if local.exists():
+        return local
+    found = shipped.find("benchmarks", name)
+    if found:
+        return found
+    local_names = {p.stem for p in (Path.cwd() / "benchmarks").glob("*.toml")}
+    known = sorted(local_names | set(shipped.names("benchmarks")))
     raise UserError(f"Unknown suite '{name}'; give a suite file (.toml) or one of: {', '.join(known) or 'none found'}.")
 
 

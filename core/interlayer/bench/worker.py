@@ -63,11 +63,15 @@ def versions(host) -> dict:
 
 
 def _git_commit() -> str:
-    """The source checkout's commit (with '+' when it has local changes), or '' outside a git checkout."""
+    """The source checkout's commit (with '+' when it has local changes), or '' when not run from one: an
+    installed wheel in a folder of some other repository must not record that repository's commit."""
     import subprocess
     from pathlib import Path
 
-    here = str(Path(__file__).resolve().parent)
+    checkout = Path(__file__).resolve().parents[3]  # core/interlayer/bench/ -> the repository
+    if not (checkout / ".git").exists():
+        return ""
+    here = str(checkout)
     try:
         head = subprocess.run(["git", "-C", here, "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
                               timeout=10).stdout.strip()
@@ -82,16 +86,17 @@ def plan(spec: dict) -> dict:
     from .. import api
     from ..errors import UserError
     from ..plugins import PluginHost
+    from ..trace import process_start
 
     try:
         host = PluginHost()
-        result = api.solve(spec["config"], overrides=spec["overrides"], host=host)
+        result = api.solve(spec["config"], overrides=spec["overrides"], host=host, origin=process_start())
         if spec.get("out"):
             api.write_outputs(result, spec["out"])
     except UserError as exc:
         return {"status": "error", "reason": str(exc)}
     data = result.to_json()
-    return {"status": result.status, "reason": result.reason, "times": data["times"],
+    return {"status": result.status, "reason": result.reason, "times": data["times"], "wall": data["wall"],
             "plan_length": len(result.plan) if result.solved else None,
             "plan_cost": result.plan_cost,
             "replans": result.replans, "task_planner_calls": result.task_planner_calls, "versions": versions(host)}
@@ -122,4 +127,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from ..cli import exit_after
+
+    exit_after(main)
