@@ -147,10 +147,13 @@ class OMPLPlanner(MotionPlanner):
                     return False
             return ok
 
+        asked = [0]
+
         def done():  # OMPL's termination condition: the work budget spent or the run's time over
             if not stop and deadlines.over():
                 stop.append(deadlines.DeadlineExceeded())
-            return bool(stop) or len(known) >= budget
+            asked[0] += 1  # iterations count too: one that checks no new state (an invalid goal) is work
+            return bool(stop) or len(known) >= budget or asked[0] >= budget
 
         def valid(s):
             return valid_at(values(s))
