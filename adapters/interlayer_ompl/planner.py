@@ -9,6 +9,7 @@ import zlib
 
 import numpy as np
 
+from interlayer import deadline as deadlines
 from interlayer.motion import MotionPlanner, points_valid
 
 # Planners that keep improving until the time limit unless a cost threshold says "any path will do".
@@ -17,6 +18,14 @@ OPTIMIZING = {"RRTstar", "PRM", "PRMstar", "BITstar", "FMT", "BFMT", "InformedRR
 # so that the query's own segment check (a block of points at a time, see MotionQuery.clear_within)
 # can replace OMPL's point-by-point one; others keep OMPL's.
 EDGE_CHECKED = {"RRTConnect", "RRT", "PRM", "PRMstar", "RRTstar"}
+# A query's budget is work, not seconds, so that its verdict does not depend on the machine's load:
+# this many new state validity checks per second of the configured time limit (about what one
+# second buys on an idle machine for the PR2's arms; the run's own time limit still cuts a query short).
+CHECKS_PER_SECOND = 10000
+# Planners that grow their roadmap in a thread of their own: it cannot call Python (the termination
+# condition above, the validity check) while solve() holds the GIL, so they keep OMPL's own clock,
+# cut to the run's time left: their results depend on the machine's load (and on thread timing anyway).
+THREADED = {"PRM", "PRMstar", "LazyPRM", "LazyPRMstar", "SPARS", "SPARStwo"}
 # OMPL seeds every RNG it makes (planners', samplers', the simplifier's) from one process-wide
 # generator, and its Python bindings reach none of them (RNG.setLocalSeed is for RNGs one holds): a
 # query reseeds that generator and makes its RNGs under this lock, so threads' queries do not draw
@@ -39,7 +48,10 @@ def _log_level(ou):
 
 
 class OMPLPlanner(MotionPlanner):
-    """``ompl:<Planner>``: options ``time_limit`` (s per query), ``simplify`` (bool)."""
+    """``ompl:<Planner>``: options ``time_limit`` (s per query: a budget of ``CHECKS_PER_SECOND``
+    state checks per second, the same on any machine), ``simplify`` (bool)."""
+
+    counts_work = True
 
     def __init__(self, planner: str, time_limit: float = 1.0, simplify: bool = True, options=None):
         super().__init__(name=f"ompl:{planner}", time_limit=time_limit, options=dict(options or {}))
@@ -120,12 +132,28 @@ class OMPLPlanner(MotionPlanner):
         # The world does not change during one query, and OMPL checks many states again (rope
         # shortcutting retries the same segments: a third of its checks on the PR2): ask each state once.
         known = {}
+        budget = max(1, round(float(time_limit) * CHECKS_PER_SECOND))
+        stop: list = []  # the run's deadline (or the supervisor) stopped the query: raised after OMPL returns
 
         def valid_at(key):
             ok = known.get(key)
             if ok is None:
-                ok = known[key] = bool(is_valid(np.array(key)))  # must be a Python bool
+                if stop:
+                    return False
+                try:
+                    ok = known[key] = bool(is_valid(np.array(key)))  # must be a Python bool
+                except BaseException as exc:  # never through OMPL's C++ frames: kept, raised after solve
+                    stop.append(exc)
+                    return False
             return ok
+
+        asked = [0]
+
+        def done():  # OMPL's termination condition: the work budget spent or the run's time over
+            if not stop and deadlines.over():
+                stop.append(deadlines.DeadlineExceeded())
+            asked[0] += 1  # iterations count too: one that checks no new state (an invalid goal) is work
+            return bool(stop) or len(known) >= budget or asked[0] >= budget
 
         def valid(s):
             return valid_at(values(s))
@@ -148,7 +176,14 @@ class OMPLPlanner(MotionPlanner):
             objective = ob.PathLengthOptimizationObjective(si)
             objective.setCostThreshold(ob.Cost(float("inf")))
             setup.setOptimizationObjective(objective)
-        setup.solve(float(time_limit))
+        if self.planner in THREADED:
+            setup.solve(float(min(time_limit, deadlines.time_left())))
+        else:
+            setup.solve(ob.PlannerTerminationCondition(done))
+        if stop:
+            raise stop[0]
+        if self.stats is not None:
+            self.stats.count("motion_checks", len(known))
         if not setup.haveExactSolutionPath():  # an approximate solution is not a path
             return None
         path = setup.getSolutionPath()
@@ -156,6 +191,8 @@ class OMPLPlanner(MotionPlanner):
             # Rope shortcutting: on the PR2 arm about as short as simplifyMax's paths, for a half to a
             # fifth of its collision checks (pr2_pick seeds 0-3)
             setup.getPathSimplifier().ropeShortcutPath(path)
+            if stop:
+                raise stop[0]
         return [to_vec(path.getState(i)) for i in range(path.getStateCount())]
 
 

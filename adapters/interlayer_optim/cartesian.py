@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from interlayer import deadline as deadlines
 from interlayer.errors import UserError
 from interlayer.motion import MotionPlanner, segment_valid
 
@@ -59,6 +60,7 @@ class CartesianPlanner(MotionPlanner):
         lower, upper = np.asarray(space.lower, float), np.asarray(space.upper, float)
         path, v = [start], start.copy()
         for k in range(1, n + 1):
+            deadlines.check()
             s = k / n
             target_p, target_R = p0 + s * (p1 - p0), R0 @ rotation_exp(s * turn)
             v = self._reach(tool, v, target_p, target_R, start + s * bias, lower, upper, linear)

@@ -13,10 +13,9 @@ best trajectory is the one whose collisions name the obstructions.
 """
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
+from interlayer import deadline as deadlines
 from interlayer.errors import UserError
 from interlayer.motion import MotionPlanner, segment_valid
 
@@ -27,9 +26,12 @@ STEP_SAMPLES = (0.5,)  # where clearances are also required between two waypoint
 
 
 class TrajOptPlanner(MotionPlanner):
-    """Options: ``time_limit`` (s per query), ``waypoints`` (per trajectory, ends included),
-    ``safety`` (m), ``inits`` (most initialisations per query), ``iterations`` (SCP iterations per
-    initialisation). Random via points come from the run's seed (``planner.seed``)."""
+    """Options: ``waypoints`` (per trajectory, ends included), ``safety`` (m), ``inits`` (most
+    initialisations per query), ``iterations`` (SCP iterations per initialisation): the work of a
+    query, the same on any machine (``time_limit`` is accepted but only the run's time limit cuts a
+    query short). Random via points come from the run's seed (``planner.seed``)."""
+
+    counts_work = True
 
     def __init__(self, time_limit=2.0, waypoints=12, safety=0.02, inits=5, iterations=15, options=None):
         super().__init__(name="trajopt", time_limit=time_limit, options=dict(options or {}))
@@ -39,7 +41,6 @@ class TrajOptPlanner(MotionPlanner):
         if query.clearances is None:
             raise UserError(f"The motion planner 'trajopt' needs signed distances, which the query '{query.label}' "
                             f"does not provide; choose an OMPL planner for this domain.")
-        deadline = time.perf_counter() + time_limit
         space, is_valid = query.space, query.check(relaxed)
         start = np.asarray(query.start, float)
         goal = start + space.difference(start, query.goal)  # unwrapped: circular coordinates stay continuous
@@ -47,12 +48,11 @@ class TrajOptPlanner(MotionPlanner):
         problem = _SCP(space, lambda q, m: query.clearances(space.interpolate(q, q, 0.0), not relaxed, m),
                        self.safety, self.iterations)
         for k, corners in enumerate(self._inits(space, start, goal, is_valid, rng)[:self.inits]):
-            if time.perf_counter() > deadline:
-                break
+            deadlines.check()
             X = _resample(corners, self.waypoints)
             fallback = X if _valid(space, X, is_valid) else None  # an init may be collision-free already
             for _ in range(2):  # optimise; a collision between waypoints doubles them and goes on
-                Y = problem.optimise(X, deadline)
+                Y = problem.optimise(X)
                 if Y is not None and _valid(space, Y, is_valid):
                     fallback = Y
                 if fallback is not None or Y is None:
@@ -132,7 +132,7 @@ class _SCP:
             self._key, self._terms = key, self.terms(X, 1.5 * self.safety)
         return self._terms
 
-    def optimise(self, X, deadline):
+    def optimise(self, X):
         import proxsuite
 
         X = np.array(X, float)
@@ -155,8 +155,7 @@ class _SCP:
         rows, d, grads = self.terms_cached(X)
         merit = smooth(X) + mu * np.maximum(0.0, -d).sum()
         for _ in range(self.iterations):
-            if time.perf_counter() > deadline:
-                return None
+            deadlines.check()
             k = len(d)
             x0 = X[1:-1].ravel()
             H = np.zeros((m + k, m + k))

@@ -13,6 +13,7 @@ from typing import Iterable
 
 import numpy as np
 import pinocchio as pin
+from interlayer import deadline as deadlines
 
 from .robot import PR2, as_se3, joint_group
 
@@ -107,6 +108,7 @@ def solve_ik(robot: PR2, arm: str, target, q_start, rng: np.random.Generator | N
     ignore = frozenset(ignore)
     seed = full_group.get(q_start)
     for attempt in range(attempts):
+        deadlines.check()  # restarts are counted; the run's time limit only cuts them short
         if attempt:
             seed = ik.group.sample(rng)
         solution = ik.clik(goal, seed, tol_pos, tol_rot, max_iters)

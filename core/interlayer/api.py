@@ -245,13 +245,16 @@ def prepare(source, overrides=None, host: PluginHost | None = None) -> Prepared:
 
 
 def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), pddl_dir=None,
-          origin: float | None = None) -> Result:
+          origin: float | None = None, on_stuck=None) -> Result:
     """Solve a problem: ``source`` is a config path, a problem file, an output folder or a dict;
     ``overrides`` a list of ``"section.key=value"`` strings or a dict ``{"section.key": value}``.
     ``pddl_dir``: write every task-planner call's problem there as PDDL. ``listeners``: functions
     called with every trace event (one with a ``prepared(problem)`` method is first told the problem).
     ``origin``: where the
-    result's wall time starts (``time.perf_counter()`` clock; default: now).
+    result's wall time starts (``time.perf_counter()`` clock; default: now). ``on_stuck(result)``: called
+    from another thread with the run so far (status "timeout") when a plugin call overruns the time
+    limit and cannot be stopped (stuck in C code or a sleep); the CLI writes it and ends the process.
+    Without it such a run ends when the call returns.
 
     Raises ``UserError`` for bad input, ``PluginFault`` for an exception in a plugin's code and
     ``Interrupted`` (a ``KeyboardInterrupt`` whose ``result`` holds the run so far) on Ctrl-C."""
@@ -283,7 +286,14 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
         problem.geometry.stats = stats
     if hasattr(problem.geometry, "cartesian"):  # the domain plans straight-line end-effector segments
         problem.geometry.cartesian = run.cartesian
-    layer = InterfaceLayer(model, run.task, run.motion, run.generators, run.translators, settings, trace, stats)
+
+    def stuck(result):
+        _clocked(result, origin)
+        result.config = config
+        on_stuck(result)
+
+    layer = InterfaceLayer(model, run.task, run.motion, run.generators, run.translators, settings, trace, stats,
+                           on_stuck=stuck if on_stuck else None)
     try:
         result = layer.solve()
     except Interrupted as stop:

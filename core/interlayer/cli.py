@@ -193,10 +193,22 @@ def cmd_plan(args) -> int:
         viewer = live_stream(host=args.viz_host)
         listeners.append(viewer)
     pddl_dir = f"{args.out}/pddl" if args.dump_pddl else None
+
+    def stuck(result):  # a plugin call overran the time limit in C code or a sleep: end the process
+        try:
+            log(f"Not solved ({result.status}): {result.reason}")
+            if args.out:
+                api.write_outputs(result, args.out)
+            if args.json:
+                print(json.dumps(result.to_json()), flush=True)
+        finally:
+            sys.stderr.flush()
+            os._exit(EXIT_NOT_SOLVED)
+
     try:
         try:
             result = api.solve(args.source, overrides=args.set, listeners=listeners, pddl_dir=pddl_dir,
-                               origin=process_start())
+                               origin=process_start(), on_stuck=stuck)
         except Interrupted as stop:  # keep what was done: the trace so far explains the run
             stopped, when = stop.result, ""
         else:

@@ -4,13 +4,14 @@ Plugins run inside the loop (planners, generators, translators, the domain's geo
 exception there is a bug of that plugin, not of Interlayer: ``blame`` turns it into a
 ``PluginFault`` naming the plugin and the component, which the CLI prints as one sentence (the
 traceback with ``INTERLAYER_DEBUG=1``). ``UserError`` (bad input), ``Infeasible`` (a reference can
-never be instantiated) and ``KeyboardInterrupt`` pass through unchanged.
+never be instantiated), ``KeyboardInterrupt`` and ``DeadlineExceeded`` pass through unchanged.
 """
 from __future__ import annotations
 
 import functools
 from contextlib import contextmanager
 
+from .deadline import calling
 from .errors import UserError
 
 
@@ -60,7 +61,8 @@ def _passes_through(exc) -> bool:
 def blame(plugin: str, component: str):
     """Attribute any unexpected exception raised in the block to ``plugin``'s ``component``."""
     try:
-        yield
+        with calling(plugin, component):  # named if the run's supervisor has to stop it
+            yield
     except Exception as exc:
         if _passes_through(exc):
             raise

@@ -5,9 +5,10 @@ import time
 from collections import Counter
 from dataclasses import dataclass
 
-from . import logic
+from . import deadline as deadlines, logic
 from .abstraction import TaskModel
 from .domain import GroundStep
+from .deadline import Deadline, DeadlineExceeded
 from .refine import EpochState, Infeasible, PoseGenerator, Refinement, Refiner, drawn_within, stable_seed
 from .result import Result
 from .trace import Stats, Trace
@@ -46,7 +47,7 @@ class InterfaceLayer:
     """Refines task plans into motion plans, learning geometric facts from failures."""
 
     def __init__(self, model: TaskModel, task_planner, motion_planner, generators, translators,
-                 settings: LoopSettings, trace: Trace | None = None, stats: Stats | None = None):
+                 settings: LoopSettings, trace: Trace | None = None, stats: Stats | None = None, on_stuck=None):
         self.model = model
         self.geometry = model.problem.geometry
         self.task_planner = task_planner
@@ -64,20 +65,25 @@ class InterfaceLayer:
         self.replans = 0
         self.watch = ProgressWatch(model)
         self.plan: list = []
+        self.on_stuck = on_stuck  # called with the run so far when a plugin call cannot be stopped (supervisor.py)
         self.dropped: list = []  # steps the shortcutting dropped from the refined plan, in order
 
     # -- pieces -----------------------------------------------------------------------------
     def _time_left(self) -> float:
-        return self.deadline - time.perf_counter()
+        return self.deadline.left()
 
     def _out_of_time(self) -> bool:
-        return time.perf_counter() > self.deadline
+        return self.deadline.over()
 
     def call_task_planner(self, state: frozenset, from_step: int):
         """callClassicalPlanner (Alg. 1, lines 2 and 10), always with a timeout."""
         self.task_calls += 1
+        from .supervisor import grace
+
+        # ends a little before the run's deadline: stopping a planner's process takes time too
+        left = max(0.0, self._time_left() - grace(self.settings.time_limit))
         with self.stats.timer("task_planning"):
-            res = self.task_planner.plan(self.model, state, min(self.settings.task_timeout, self._time_left()))
+            res = self.task_planner.plan(self.model, state, min(self.settings.task_timeout, left))
         plan, dropped = list(res.plan), []
         if res.status == "solved":
             from .shortcut import unneeded_steps
@@ -91,6 +97,11 @@ class InterfaceLayer:
                         unneeded=plan_json(dropped))
         if res.status == "error":
             raise RuntimeError(res.reason)
+        if res.status == "timeout":  # the clock only cuts a run short: a timed-out call is no dead end
+            if self.settings.task_timeout < left:
+                raise DeadlineExceeded(f"the task planner's call #{self.task_calls} took longer than "
+                                       f"planner.task_timeout = {self.settings.task_timeout:g} s")
+            raise DeadlineExceeded(where="the task planner")
         self.last_task_status = res.status
         return plan if res.status == "solved" else None
 
@@ -167,7 +178,7 @@ class InterfaceLayer:
 
         before = len(self.plan)
         self.plan, outcomes = shortcut(self.plan, outcomes, self.model, self.with_learned(init), self.geometry,
-                                       self.motion, world0, self._out_of_time, accepted, self.stats)
+                                       self.motion, world0, self._cut, accepted, self.stats)
         self.stats.count("plan_length_before_shortcut", before)
         self.stats.count("plan_length", len(self.plan))
         # one summary where the steps are counted: the log, result.json and the explain page print it
@@ -183,35 +194,71 @@ class InterfaceLayer:
             why = self.task_planner.validate_plan(self.model, init, self.plan)
         if why:
             raise RuntimeError(f"the final task plan failed validation: {why}")
+        self.deadline.check()  # found after the limit: a loaded machine must not turn a timeout into a solve
         return "solved", "", outcomes
+
+    def _cut(self) -> bool:
+        """For work that must not be cut short with a different result (the shortcut): past the
+        limit the run ends as a timeout."""
+        self.deadline.check()
+        return False
 
     # -- Alg. 1 -----------------------------------------------------------------------------
     def solve(self) -> Result:
-        t0 = time.perf_counter()
-        self.deadline = t0 + self.settings.time_limit
+        from .supervisor import Supervisor
+
+        self.deadline = Deadline(self.settings.time_limit)
         if self.motion is not None:  # a motion planner never plans past the run's time limit
-            self.motion.deadline = self.deadline
+            self.motion.deadline = self.deadline.at
+        supervisor = Supervisor(self.deadline, self.on_stuck, self._stuck_result)
         try:
-            status, reason, refinement = self._run()
-        except Infeasible as exc:  # a domain's own proof that a reference has no instance
-            status, reason, refinement = "unsolvable", str(exc), None
-        except NoProgress as exc:  # nothing proved: the loop stopped itself (watchdog, exhausted budget)
-            status, reason, refinement = "gave_up", str(exc), None
+            with deadlines.running(self.deadline):
+                supervisor.start()
+                try:
+                    status, reason, refinement = self._run()
+                except Infeasible as exc:  # a domain's own proof that a reference has no instance
+                    status, reason, refinement = "unsolvable", str(exc), None
+                except NoProgress as exc:  # nothing proved: the loop stopped itself (watchdog, exhausted budget)
+                    status, reason, refinement = "gave_up", str(exc), None
+                except DeadlineExceeded as exc:
+                    status, reason, refinement = "timeout", self._timeout_reason(exc, supervisor.stopped), None
+        except DeadlineExceeded as exc:  # the supervisor's, delivered while the run was ending
+            status, reason, refinement = "timeout", self._timeout_reason(exc, supervisor.stopped), None
         except KeyboardInterrupt:
             status, reason, refinement = "interrupted", "interrupted by the user (Ctrl-C)", None
-        self.stats.times["total"] = time.perf_counter() - t0
-        accounted = sum(v for k, v in self.stats.times.items() if k != "total")
-        self.stats.times["interface"] = max(0.0, self.stats.times["total"] - accounted)
-        self.trace.emit("end", status=status, reason=reason)
-        result = Result(status=status, reason=reason, plan=list(self.plan) if status == "solved" else [],
-                      plan_cost=self.model.cost(self.plan) if status == "solved" else None,
-                      learned_facts=list(self.learned), replans=self.replans, task_planner_calls=self.task_calls,
-                      times=dict(self.stats.times), counts=dict(self.stats.counts), seed=self.settings.seed,
-                      refinement=refinement, trace=self.trace, problem=self.model.problem, model=self.model,
-                      shortcut_dropped=list(self.dropped) if status == "solved" else [])
+        finally:
+            supervisor.stop()
+        result = self._result(status, reason, refinement)
         if status == "interrupted":
             raise Interrupted(result)
         return result
+
+    def _timeout_reason(self, exc: DeadlineExceeded, stopped: str) -> str:
+        limit = f"the time limit of {self.settings.time_limit:g} s"
+        if stopped:
+            return f"{limit} was reached and {stopped} did not return: it was stopped"
+        if exc.args and exc.args[0] != DeadlineExceeded().args[0]:
+            return f"{exc.args[0]}; the run stops there"
+        where = f" inside {exc.where}" if exc.where else ""
+        return f"{limit} was reached{where} before a refinement was found"
+
+    def _stuck_result(self, stopped: str) -> Result:
+        """The run so far, for a supervisor that cannot stop the call under way (from its thread)."""
+        return self._result("timeout", f"the time limit of {self.settings.time_limit:g} s was reached and {stopped} "
+                                       f"did not return: the process was ended", None)
+
+    def _result(self, status, reason, refinement) -> Result:
+        self.stats.times["total"] = time.perf_counter() - self.deadline.start
+        accounted = sum(v for k, v in self.stats.times.items() if k not in ("total", "interface"))
+        self.stats.times["interface"] = max(0.0, self.stats.times["total"] - accounted)
+        self.trace.emit("end", status=status, reason=reason)
+        solved = status == "solved"
+        return Result(status=status, reason=reason, plan=list(self.plan) if solved else [],
+                      plan_cost=self.model.cost(self.plan) if solved else None,
+                      learned_facts=list(self.learned), replans=self.replans, task_planner_calls=self.task_calls,
+                      times=dict(self.stats.times), counts=dict(self.stats.counts), seed=self.settings.seed,
+                      refinement=refinement, trace=self.trace, problem=self.model.problem, model=self.model,
+                      shortcut_dropped=list(self.dropped) if solved else [])
 
     def _run(self):
         init = self.model.init

@@ -13,6 +13,8 @@ from typing import Callable
 
 import numpy as np
 
+from . import deadline as deadlines
+
 
 @dataclass(frozen=True)
 class ConfigSpace:
@@ -146,13 +148,18 @@ class MotionPlanner:
     # the search, and so does a goal that collides with movables (see ``plan``). False for planners
     # that draw one path of a fixed shape (a straight line, a tool line): they are quick anyway.
     searches = True
+    # A planner whose budget counts work (``time_limit`` converted to iterations or checks) gets the
+    # configured limit unchanged, so that its verdict does not depend on the time left; it must check
+    # the run's deadline itself (``interlayer.deadline``). Others get at most the time left.
+    counts_work = False
 
     def plan(self, query: MotionQuery, time_limit: float | None = None, straight: bool = True) -> MotionPlan:
         """``straight=False``: run the search even if the straight line is collision-free (a caller
         that found it touching an obstacle between two checks asks for another path)."""
+        deadlines.check()
         t0 = time.perf_counter()
         limit = self.time_limit if time_limit is None else time_limit
-        if self.deadline is not None:
+        if self.deadline is not None and not self.counts_work:
             limit = max(0.0, min(limit, self.deadline - t0))
         space, start, goal = query.space, query.start, query.goal
         start_ok, goal_ok = query.is_valid(start), query.is_valid(goal)
@@ -162,6 +169,7 @@ class MotionPlanner:
                 path = [start, goal]  # no planner needed (a sampling planner takes long to find it)
             else:
                 path = self._solve(query, False, limit)
+                deadlines.check()
         if path is not None:
             return MotionPlan(True, tuple(np.asarray(p, float) for p in path), time=time.perf_counter() - t0)
         # GetMPErrors: relax the movable objects and see what the relaxed path runs into.
@@ -178,9 +186,10 @@ class MotionPlanner:
                 return MotionPlan(False, obstructions=tuple(sorted(blockers)), time=time.perf_counter() - t0,
                                   reason="the goal configuration collides with " + ", ".join(sorted(blockers)))
         if relaxed is None:
-            if self.deadline is not None:
+            if self.deadline is not None and not self.counts_work:
                 limit = max(0.0, min(limit, self.deadline - time.perf_counter()))
             relaxed = self._solve(query, True, limit)
+        deadlines.check()  # a search cut by the run's deadline decides nothing
         if relaxed is None:
             return MotionPlan(False, reason="no path even with movable objects ignored", time=time.perf_counter() - t0)
         dense = space.densify(relaxed)
@@ -207,7 +216,16 @@ class MotionPlanner:
 
 def segment_valid(space: ConfigSpace, a, b, is_valid) -> bool:
     """Whether the straight segment a-b is valid at the space's resolution."""
-    return all(is_valid(q) for q in space.densify([a, b]))
+    return all(map(_checked(is_valid), space.densify([a, b])))
+
+
+def _checked(is_valid):
+    """``is_valid`` that first checks the run's deadline (a long sweep of collision checks stops at it)."""
+    def valid(q):
+        deadlines.check()
+        return is_valid(q)
+
+    return valid
 
 
 BLOCK, WAIT = 5, 2  # see points_valid
@@ -220,6 +238,7 @@ def points_valid(points, is_valid, clear=None, block: int = BLOCK, wait: int = W
     argument, the points are taken ``block`` at a time and a block whose middle point is clear needs no
     other check; next to an obstacle (the middle point not clear) the block's points are checked one
     by one, and so are those of the next ``wait`` blocks (they are probably near it too)."""
+    is_valid = _checked(is_valid)
     if clear is None:
         return all(map(is_valid, points))
     waiting = 0

@@ -13,6 +13,7 @@ from typing import Any, Callable, Iterable, Iterator, Mapping, Protocol
 
 import numpy as np
 
+from . import deadline
 from .domain import GroundStep
 
 
@@ -157,10 +158,12 @@ def fingerprint(candidate: Candidate):
 
 def drawn_within(make_items, context):
     """The items of ``make_items()`` drawn one at a time, each computed inside a fresh ``context()``
-    (a timer, a fault attribution); a ``None`` item ends them."""
+    (a timer, a fault attribution); a ``None`` item ends them. Past the run's time limit, the next
+    draw raises ``DeadlineExceeded``."""
     with context():
         items = iter(make_items())
     while True:
+        deadline.check()
         with context():
             item = next(items, None)
         if item is None:

@@ -9,12 +9,13 @@ with a sentence naming the culprit; the loop ends the run ``gave_up`` with that 
 """
 from __future__ import annotations
 
-import time
 from collections import Counter, deque
 
 BARREN_LIMIT = 20  # resets in a row that learned nothing, all blamed on the same culprit
 REPEAT_LIMIT = 3  # resets in a row whose epochs tried the same candidates with the same outcomes
-RATE_WINDOW, MAX_RESETS_PER_SECOND = 100, 50.0  # the last RATE_WINDOW resets must take >= 2 s
+# the last RATE_WINDOW resets must have made at least RATE_WINDOW refinement attempts between them: work,
+# not seconds, so that the verdict does not depend on the machine's speed or load
+RATE_WINDOW = 100
 MAX_TRACE_EVENTS = 200_000
 
 
@@ -23,17 +24,18 @@ class NoProgress(Exception):
 
 
 class ProgressWatch:
-    def __init__(self, model, clock=time.perf_counter):
-        self.model, self.clock = model, clock
+    def __init__(self, model):
+        self.model = model
         self.barren: list[set] = []  # culprits of each reset in a row that learned nothing
         self.repeats, self.last_signature = 0, None
-        self.reset_times: deque = deque(maxlen=RATE_WINDOW)
+        self.epoch_attempts: deque = deque(maxlen=RATE_WINDOW)  # refinement attempts of each of the last epochs
         self._new_epoch()
 
     def _new_epoch(self):
         self.culprits: set[str] = set()
         self.signature: list = []
         self.failures: Counter = Counter()
+        self.attempts = 0
 
     # -- observations --------------------------------------------------------------------
     def generator_empty(self, label: str, index: int, step) -> None:
@@ -42,6 +44,7 @@ class ProgressWatch:
 
     def attempt(self, index: int, step, candidate, outcome) -> None:
         kind = outcome.failure.kind if outcome.failure else ("ok" if outcome.ok else "failed")
+        self.attempts += 1
         self.signature.append((index, candidate.label, repr(candidate.waypoints)[:300], kind))
         if not outcome.ok:
             self.failures[(index, str(step), kind)] += 1
@@ -64,8 +67,7 @@ class ProgressWatch:
     # -- the decision at each reset ------------------------------------------------------
     def reset(self, learned: int, plan) -> None:
         """Called at every reset (Alg. 1, lines 14-17) with the number of facts learned in the epoch."""
-        now = self.clock()
-        self.reset_times.append(now)
+        self.epoch_attempts.append(self.attempts)
         signature = (tuple(plan), tuple(self.signature))
         self.repeats = self.repeats + 1 if signature == self.last_signature else 0
         self.last_signature = signature
@@ -83,9 +85,9 @@ class ProgressWatch:
                 raise NoProgress(f"the reset cycle repeats the same state: {REPEAT_LIMIT} epochs in a row tried the same "
                                  f"candidates with the same outcomes (do the pose generators use the rng they are "
                                  f"given?); {self._summary()}")
-            if len(self.reset_times) == RATE_WINDOW and now - self.reset_times[0] < RATE_WINDOW / MAX_RESETS_PER_SECOND:
-                raise NoProgress(f"the loop is spinning: {RATE_WINDOW} resets in {now - self.reset_times[0]:.2f} s; "
-                                 f"{self._summary()}")
+            if len(self.epoch_attempts) == RATE_WINDOW and sum(self.epoch_attempts) < RATE_WINDOW:
+                raise NoProgress(f"the loop is spinning: {RATE_WINDOW} resets with {sum(self.epoch_attempts)} "
+                                 f"refinement attempts between them; {self._summary()}")
         finally:
             self._new_epoch()
 
