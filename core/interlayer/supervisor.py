@@ -17,8 +17,8 @@ import time
 from .deadline import Deadline, DeadlineExceeded
 
 # fractions of the time limit past it, each at least the given seconds
-INJECT_AFTER, INJECT_MIN = 0.04, 0.2
-STOP_AFTER, STOP_MIN = 0.08, 0.4
+INJECT_AFTER, INJECT_MIN = 0.03, 0.1
+STOP_AFTER, STOP_MIN = 0.06, 0.2
 
 
 def grace(limit: float) -> float:
