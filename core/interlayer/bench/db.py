@@ -10,6 +10,7 @@ import json
 import os
 import socket
 import sqlite3
+import time
 from pathlib import Path
 
 from ..errors import UserError
@@ -45,20 +46,37 @@ RUN_COLUMNS = ("suite", "row", "combo", "seed", "time_limit", "config", "overrid
 JSON_COLUMNS = ("overrides", "times", "versions", "wall")
 
 
+LOCKED_RETRIES = 40  # about 40 s of waiting in all
+
+
 def connect(path, create: bool = True) -> sqlite3.Connection:
     path = Path(path)
     if not create and not path.exists():
         raise UserError(f"The results database {path} does not exist; create it with 'interlayer bench --db {path}'.")
     if create:
         path.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        con = sqlite3.connect(path, timeout=30, check_same_thread=False)  # a coordinator's threads claim runs
-        con.execute("PRAGMA journal_mode=WAL")
-        con.executescript(SCHEMA)
-        if "wall" not in {r[1] for r in con.execute("PRAGMA table_info(runs)")}:  # a database from before
-            con.execute("ALTER TABLE runs ADD COLUMN wall TEXT")
-    except sqlite3.DatabaseError as exc:
-        raise UserError(f"{path} is not an Interlayer results database ({exc}); give another --db path.") from None
+    for attempt in range(LOCKED_RETRIES + 1):
+        con = None
+        try:
+            con = sqlite3.connect(path, timeout=30, check_same_thread=False)  # a coordinator's threads claim runs
+            con.execute("PRAGMA journal_mode=WAL")
+            con.executescript(SCHEMA)
+            if "wall" not in {r[1] for r in con.execute("PRAGMA table_info(runs)")}:  # a database from before
+                con.execute("ALTER TABLE runs ADD COLUMN wall TEXT")
+            break
+        except sqlite3.OperationalError as exc:
+            # Switching to WAL while another coordinator sets the same database up fails at once as
+            # "locked" (SQLite's busy timeout does not cover it): try again shortly.
+            if con is not None:
+                con.close()
+            if "locked" not in str(exc):
+                raise UserError(f"{path} is not an Interlayer results database ({exc}); give another --db path.") from None
+            if attempt == LOCKED_RETRIES:
+                raise UserError(f"The results database {path} stayed locked by another process; "
+                                f"wait for it to finish or give another --db path.") from None
+            time.sleep(0.05 * (attempt + 1))
+        except sqlite3.DatabaseError as exc:
+            raise UserError(f"{path} is not an Interlayer results database ({exc}); give another --db path.") from None
     con.row_factory = sqlite3.Row
     return con
 
