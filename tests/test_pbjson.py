@@ -233,6 +233,38 @@ def test_a_stacking_placement_is_sampled_on_the_top_of_the_object_below(tmp_path
     assert g.supports_of("b", Q, w) == ["a_top"] and np.hypot(*(Q[:2, 3] - A[:2, 3])) < 0.03
 
 
+def classed(**task):
+    """scene() with its boxes named as the format's ``exists_*`` files name a class's members (a -> blue1-1,
+    b -> blue2-1) and a third name outside the class."""
+    data = scene(**task)
+    rename = {"a": "blue1-1", "b": "blue2-1"}
+    for body in data["bodies"]:
+        body["name"] = rename.get(body["name"], body["name"])
+    data["task"]["object_names"] = [rename[n] for n in data["task"]["object_names"]]
+    return data
+
+
+def test_a_holding_goal_given_as_a_list_or_a_class_holds_any_one_of_its_objects(tmp_path, capsys):
+    from interlayer.cli import main
+
+    either = "(or (Holding a left) (Holding a right) (Holding b left) (Holding b right))"
+    assert "(or (Holding a left) (Holding a right))" in load(tmp_path, scene(goal_holding=["a"])).goal
+    assert either in load(tmp_path, scene(goal_holding=["a", "b"])).goal
+    p = load(tmp_path, classed(goal_holding=["blue"]))
+    assert p.geometry.goals["holding"] == ("blue1-1", "blue2-1")
+    assert "(Holding blue1-1 left) (Holding blue1-1 right) (Holding blue2-1 left) (Holding blue2-1 right)" in p.goal
+    w = p.geometry.initial_world()
+    assert p.geometry.goal_violations(w, {}) == ["goal not satisfied: blue1-1 or blue2-1 is not held at the end"]
+    w.held["left"] = ("blue2-1", np.eye(4))  # holding one of the class is enough
+    assert p.geometry.goal_violations(w, {}) == []
+    path = tmp_path / "exists.json"
+    path.write_text(json.dumps(classed(goal_holding=["blue"])))
+    assert main(["check", str(path)]) == 0
+    assert "Goals: hold blue (any one of blue1-1, blue2-1)" in capsys.readouterr().out
+    with pytest.raises(UserError, match=r"task.goal_holding\[1\] = 'red' is neither a movable object nor the start"):
+        load(tmp_path, classed(goal_holding=["blue", "red"]))
+
+
 @pytest.mark.parametrize("edit, field", [
     (lambda d: d["bodies"][3]["links"][0][0].update(type="capsule"), "bodies[3] (a).links[0][0].type = 'capsule'"),
     (lambda d: d["task"].update(goal_regions={"ghost": "goal"}), "task.goal_regions key 'ghost'"),

@@ -138,7 +138,8 @@ def build_problem(scene, source) -> Problem:
     # the target (Clutter's samplers search harder for its grasps and keep put-downs out of its way): the
     # object to hold, else the one object a goal places
     placed = list(dict.fromkeys([*goals["on"], *goals["stackings"], *goals["poses"]]))
-    target = goals["holding"] or (placed[0] if len(placed) == 1 else None)
+    held = goals["holding"] or ()
+    target = held[0] if len(held) == 1 else None if held else (placed[0] if len(placed) == 1 else None)
     layout = Layout([o for o in scene.fixed if o.name not in scene.floors], list(scene.objects), {"table": table}, target,
                     "pbjson", scene.grasps, base=scene.base, extra=extra)
     geometry = PBGeometry(layout)
@@ -176,9 +177,8 @@ def build_problem(scene, source) -> Problem:
             init.add(("AtGoalPose", o))
         init |= {("Occupies", b, o) for b in geometry.goal_occupants(o, world)}
     parts = []
-    if goals["holding"]:
-        t = goals["holding"]
-        parts.append(f"(or (Holding {t} left) (Holding {t} right))")
+    if goals["holding"]:  # any one of the objects named, in either hand
+        parts.append(f"(or {' '.join(f'(Holding {t} {a})' for t in goals['holding'] for a in ARMS)})")
     parts += [f"(On {o} {s})" for o, s in goals["on"].items()]
     parts += [f"(On {o} {top_name(b)})" for o, b in goals["stackings"].items()]
     parts += [f"(AtGoalPose {o})" for o in goals["poses"]]

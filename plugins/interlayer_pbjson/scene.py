@@ -261,6 +261,7 @@ def read_scene(data, label) -> Scene:
             raise UserError(f"bodies: a body is named {reserved!r}, which Interlayer reserves for the PR2's arms; rename it.")
     role = {n: k for k in ("table", "sink", "stove") for n in _names(task, f"{k}_names")}
     fixed, objects, offsets, colors, floors, notes, surfaces = [], [], {}, {}, [], [], {}
+    frames = {}  # movable object -> its body frame at the start
     for i, body in enumerate(bodies):
         name = body["name"]
         is_movable = name in movable
@@ -274,6 +275,7 @@ def read_scene(data, label) -> Scene:
             specs.append(spec)
         if is_movable:
             objects.append(specs[0])
+            frames[name] = T
             centre = (np.linalg.inv(T) @ np.append(np.array(specs[0].pose[:3]), 1.0))[:3]
             offsets[name] = [*centre.tolist(), specs[0].pose[3] - math.atan2(T[1, 0], T[0, 0])]  # + yaw in the body
             continue
@@ -307,7 +309,7 @@ def read_scene(data, label) -> Scene:
         if len(poly) < 3 or area(poly) < 1e-6:
             raise UserError(f"{where}.hull = {hull!r} encloses no area.")
         surfaces[rname] = Surface(rname, "region", poly, float(R[2, 3]), None, _color(region))
-    goals = read_goals(task, {o.name for o in objects}, surfaces)
+    goals = read_goals(task, frames, surfaces)
     # objects that others rest on, and the stacking targets, get a surface on their top
     specs = {o.name: o for o in objects}
     tops = set(goals["stackings"].values())
@@ -364,11 +366,25 @@ def read_robot(robot):
     return base, torso, arms
 
 
-def read_goals(task, objects, surfaces) -> dict:
+def read_goals(task, frames, surfaces) -> dict:
+    """The goals of the file. An entry of goal_holding may be a class: the start of
+    several objects' names (``"blue"`` for ``blue1-1``, ``blue2-1``): any one of them does (the format's
+    ``exists_*`` problems); goal_holding may list several entries, holding any one object of them does."""
+    objects = set(frames)
+
     def obj(value, where):
         if value not in objects:
             raise UserError(f"{where} = {value!r} is not a movable object (task.object_names).")
         return value
+
+    def members(value, where):
+        if isinstance(value, str) and value in objects:
+            return (value,)
+        found = tuple(sorted(o for o in objects if isinstance(value, str) and value and o.startswith(value)))
+        if not found:
+            raise UserError(f"{where} = {value!r} is neither a movable object nor the start of one's name "
+                            f"(a class); name one of task.object_names.")
+        return found
 
     def mapping(key):
         value = task.get(key) or {}
@@ -377,7 +393,13 @@ def read_goals(task, objects, surfaces) -> dict:
         return value
 
     holding = task.get("goal_holding")
-    goals = {"holding": obj(holding, "task.goal_holding") if holding is not None else None}
+    if holding is not None and not isinstance(holding, (str, list)) or holding == []:
+        raise UserError(f"task.goal_holding = {holding!r} must be an object's name, a class or a list of them.")
+    goals = {"holding": None, "holding_as": holding}
+    if holding is not None:
+        entries = holding if isinstance(holding, list) else [holding]
+        goals["holding"] = tuple(dict.fromkeys(o for i, e in enumerate(entries)
+                                               for o in members(e, "task.goal_holding" + (f"[{i}]" if isinstance(holding, list) else ""))))
     goals["on"] = {}
     for o, s in mapping("goal_regions").items():
         obj(o, f"task.goal_regions key {o!r}")
@@ -421,8 +443,8 @@ def read_goals(task, objects, surfaces) -> dict:
     if twice:
         o = sorted(twice)[0]
         raise UserError(f"task: {o!r} has two placement goals (goal_regions, goal_stackings, goal_poses); keep one.")
-    if holding is not None and holding in set(goals["on"]) | set(goals["stackings"]) | set(goals["poses"]):
+    if goals["holding"] and set(goals["holding"]) <= set(goals["on"]) | set(goals["stackings"]) | set(goals["poses"]):
         raise UserError(f"task.goal_holding = {holding!r} must also rest somewhere by another goal; keep one.")
-    if not any((holding, goals["on"], goals["stackings"], goals["poses"], goals["cleaned"], goals["cooked"], goals["home"])):
+    if not any((goals["holding"], goals["on"], goals["stackings"], goals["poses"], goals["cleaned"], goals["cooked"], goals["home"])):
         raise UserError(f"task: the file has no goal ({', '.join(GOAL_KEYS)} are all empty).")
     return goals

@@ -32,8 +32,9 @@ def describe(geometry) -> str:
     lines.append(f"Grasps: {', '.join(g.upper() for g in layout.grasps)}")
     g = geometry.goals
     goals = []
-    if g["holding"]:
-        goals.append(f"hold {g['holding']}")
+    if g["holding"]:  # as the file writes it, then the objects it names when that differs
+        named = g["holding_as"] if isinstance(g["holding_as"], str) else " or ".join(g["holding_as"])
+        goals.append(f"hold {named}" + ("" if list(g["holding"]) == [named] else f" (any one of {', '.join(g['holding'])})"))
     goals += [f"{o} on {s}" for o, s in g["on"].items()]
     goals += [f"{o} stacked on {b}" for o, b in g["stackings"].items()]
     goals += [f"{o} at " + ("its initial pose" if isinstance(p, str) else "({:.3f}, {:.3f}, {:.3f})".format(*p[:3, 3]))

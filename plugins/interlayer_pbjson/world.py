@@ -130,8 +130,8 @@ class PBGeometry(PR2Geometry):
 
     def goal_violations(self, world, trajectory) -> list[str]:
         g, out = self.goals, []
-        if g["holding"] and world.holder(g["holding"]) is None:
-            out.append(f"goal not satisfied: {g['holding']} is not held at the end")
+        if g["holding"] and all(world.holder(o) is None for o in g["holding"]):
+            out.append(f"goal not satisfied: {' or '.join(g['holding'])} is not held at the end")
         wanted = {**g["on"], **{o: top_name(b) for o, b in g["stackings"].items()}}
         for o, s in wanted.items():
             if o not in world.objects or s not in self.supports_of(o, world.objects[o], world):
