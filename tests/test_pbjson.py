@@ -265,6 +265,23 @@ def test_a_holding_goal_given_as_a_list_or_a_class_holds_any_one_of_its_objects(
         load(tmp_path, classed(goal_holding=["blue", "red"]))
 
 
+def test_a_region_goal_of_a_class_puts_any_one_of_its_objects_there(tmp_path, capsys):
+    from interlayer.cli import main
+
+    p = load(tmp_path, classed(goal_regions={"blue": "goal"}))
+    assert "(or (On blue1-1 goal) (On blue2-1 goal))" in p.goal
+    w = p.geometry.initial_world()
+    assert p.geometry.goal_violations(w, {}) == ["goal not satisfied: blue1-1 or blue2-1 does not rest on goal at the end"]
+    P = w.objects["blue2-1"].copy()
+    P[0, 3] = 1.35  # onto the region (x 1.25 to 1.45 on the table)
+    w.objects["blue2-1"] = P
+    assert p.geometry.goal_violations(w, {}) == []
+    path = tmp_path / "exists_region.json"
+    path.write_text(json.dumps(classed(goal_regions={"blue": "goal"})))
+    assert main(["check", str(path)]) == 0
+    assert "Goals: blue on goal (any one of blue1-1, blue2-1)" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("edit, field", [
     (lambda d: d["bodies"][3]["links"][0][0].update(type="capsule"), "bodies[3] (a).links[0][0].type = 'capsule'"),
     (lambda d: d["task"].update(goal_regions={"ghost": "goal"}), "task.goal_regions key 'ghost'"),

@@ -137,7 +137,7 @@ def build_problem(scene, source) -> Problem:
              "floors": [o for o in scene.fixed if o.name in scene.floors]}  # drawn, not collided with
     # the target (Clutter's samplers search harder for its grasps and keep put-downs out of its way): the
     # object to hold, else the one object a goal places
-    placed = list(dict.fromkeys([*goals["on"], *goals["stackings"], *goals["poses"]]))
+    placed = list(dict.fromkeys([*(m for o in goals["on"] for m in goals["members"][o]), *goals["stackings"], *goals["poses"]]))
     held = goals["holding"] or ()
     target = held[0] if len(held) == 1 else None if held else (placed[0] if len(placed) == 1 else None)
     layout = Layout([o for o in scene.fixed if o.name not in scene.floors], list(scene.objects), {"table": table}, target,
@@ -179,7 +179,7 @@ def build_problem(scene, source) -> Problem:
     parts = []
     if goals["holding"]:  # any one of the objects named, in either hand
         parts.append(f"(or {' '.join(f'(Holding {t} {a})' for t in goals['holding'] for a in ARMS)})")
-    parts += [f"(On {o} {s})" for o, s in goals["on"].items()]
+    parts += [_any(f"(On {m} {s})" for m in goals["members"][o]) for o, s in goals["on"].items()]
     parts += [f"(On {o} {top_name(b)})" for o, b in goals["stackings"].items()]
     parts += [f"(AtGoalPose {o})" for o in goals["poses"]]
     parts += [f"(Cleaned {o})" for o in goals["cleaned"]] + [f"(Cooked {o})" for o in goals["cooked"]]
@@ -187,6 +187,11 @@ def build_problem(scene, source) -> Problem:
         parts.append("(AtHome)")
     source = {**source, "layout": layout.to_json()}
     return Problem(domain, objects, frozenset(init), f"(and {' '.join(parts)})", geometry, source, name=scene.name)
+
+
+def _any(atoms):
+    atoms = list(atoms)
+    return atoms[0] if len(atoms) == 1 else f"(or {' '.join(atoms)})"
 
 
 def _body(spec_name, surface):

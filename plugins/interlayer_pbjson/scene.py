@@ -367,7 +367,7 @@ def read_robot(robot):
 
 
 def read_goals(task, frames, surfaces) -> dict:
-    """The goals of the file. An entry of goal_holding may be a class: the start of
+    """The goals of the file. An object entry of goal_holding / goal_regions may be a class: the start of
     several objects' names (``"blue"`` for ``blue1-1``, ``blue2-1``): any one of them does (the format's
     ``exists_*`` problems); goal_holding may list several entries, holding any one object of them does."""
     objects = set(frames)
@@ -395,14 +395,14 @@ def read_goals(task, frames, surfaces) -> dict:
     holding = task.get("goal_holding")
     if holding is not None and not isinstance(holding, (str, list)) or holding == []:
         raise UserError(f"task.goal_holding = {holding!r} must be an object's name, a class or a list of them.")
-    goals = {"holding": None, "holding_as": holding}
+    goals = {"holding": None, "holding_as": holding, "members": {}}
     if holding is not None:
         entries = holding if isinstance(holding, list) else [holding]
         goals["holding"] = tuple(dict.fromkeys(o for i, e in enumerate(entries)
                                                for o in members(e, "task.goal_holding" + (f"[{i}]" if isinstance(holding, list) else ""))))
     goals["on"] = {}
     for o, s in mapping("goal_regions").items():
-        obj(o, f"task.goal_regions key {o!r}")
+        goals["members"][o] = members(o, f"task.goal_regions key {o!r}")
         if s not in surfaces:
             raise UserError(f"task.goal_regions.{o} = {s!r} is not a table, sink, stove or region of the file.")
         goals["on"][o] = s

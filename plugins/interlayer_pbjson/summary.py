@@ -35,7 +35,8 @@ def describe(geometry) -> str:
     if g["holding"]:  # as the file writes it, then the objects it names when that differs
         named = g["holding_as"] if isinstance(g["holding_as"], str) else " or ".join(g["holding_as"])
         goals.append(f"hold {named}" + ("" if list(g["holding"]) == [named] else f" (any one of {', '.join(g['holding'])})"))
-    goals += [f"{o} on {s}" for o, s in g["on"].items()]
+    goals += [f"{o} on {s}" + ("" if g["members"][o] == (o,) else f" (any one of {', '.join(g['members'][o])})")
+              for o, s in g["on"].items()]
     goals += [f"{o} stacked on {b}" for o, b in g["stackings"].items()]
     goals += [f"{o} at " + ("its initial pose" if isinstance(p, str) else "({:.3f}, {:.3f}, {:.3f})".format(*p[:3, 3]))
               for o, p in g["poses"].items()]

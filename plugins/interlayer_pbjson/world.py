@@ -132,10 +132,11 @@ class PBGeometry(PR2Geometry):
         g, out = self.goals, []
         if g["holding"] and all(world.holder(o) is None for o in g["holding"]):
             out.append(f"goal not satisfied: {' or '.join(g['holding'])} is not held at the end")
-        wanted = {**g["on"], **{o: top_name(b) for o, b in g["stackings"].items()}}
-        for o, s in wanted.items():
-            if o not in world.objects or s not in self.supports_of(o, world.objects[o], world):
-                out.append(f"goal not satisfied: {o} does not rest on {s} at the end")
+        wanted = [(o, s, g["members"][o]) for o, s in g["on"].items()]
+        wanted += [(o, top_name(b), (o,)) for o, b in g["stackings"].items()]
+        for o, s, members in wanted:
+            if not any(m in world.objects and s in self.supports_of(m, world.objects[m], world) for m in members):
+                out.append(f"goal not satisfied: {' or '.join(members)} does not rest on {s} at the end")
         for o in g["poses"]:
             if o not in world.objects or not self.at_goal_pose(o, world.objects[o]):
                 out.append(f"goal not satisfied: {o} is not at its goal pose at the end")
