@@ -282,6 +282,24 @@ def test_a_region_goal_of_a_class_puts_any_one_of_its_objects_there(tmp_path, ca
     assert "Goals: blue on goal (any one of blue1-1, blue2-1)" in capsys.readouterr().out
 
 
+def test_a_goal_pose_naming_another_object_is_where_that_object_starts(tmp_path, capsys):
+    """``replace``: a and b swap places, written as each other's names: the same goal poses, occupants and
+    goal as with the body poses written out."""
+    from interlayer.cli import main
+
+    named = load(tmp_path, scene(goal_poses={"a": "b", "b": "a"}))
+    a, b = [QZ90["w"], 0, 0, QZ90["z"], 1.1, 0.1, 0.751], [1, 0, 0, 0, 1.2, -0.2, 0.751]  # the body poses of the scene
+    written = load(tmp_path, scene(goal_poses={"a": b, "b": a}))
+    for o in ("a", "b"):
+        assert np.allclose(named.geometry.layout.extra["goal_centres"][o], written.geometry.layout.extra["goal_centres"][o])
+    assert {x for x in named.init if x[0] == "Occupies"} == {("Occupies", "b", "a"), ("Occupies", "a", "b")}
+    assert named.goal == written.goal
+    path = tmp_path / "replace.json"
+    path.write_text(json.dumps(scene(goal_poses={"a": "b", "b": "a"})))
+    assert main(["check", str(path)]) == 0
+    assert "Goals: a at b's initial pose; b at a's initial pose" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("edit, field", [
     (lambda d: d["bodies"][3]["links"][0][0].update(type="capsule"), "bodies[3] (a).links[0][0].type = 'capsule'"),
     (lambda d: d["task"].update(goal_regions={"ghost": "goal"}), "task.goal_regions key 'ghost'"),

@@ -261,7 +261,7 @@ def read_scene(data, label) -> Scene:
             raise UserError(f"bodies: a body is named {reserved!r}, which Interlayer reserves for the PR2's arms; rename it.")
     role = {n: k for k in ("table", "sink", "stove") for n in _names(task, f"{k}_names")}
     fixed, objects, offsets, colors, floors, notes, surfaces = [], [], {}, {}, [], [], {}
-    frames = {}  # movable object -> its body frame at the start
+    frames = {}  # movable object -> its body frame at the start (a goal pose may name another object's)
     for i, body in enumerate(bodies):
         name = body["name"]
         is_movable = name in movable
@@ -413,16 +413,20 @@ def read_goals(task, frames, surfaces) -> dict:
         if below == o:
             raise UserError(f"task.goal_stackings.{o} = {below!r}: an object cannot stand on itself.")
         goals["stackings"][o] = below
-    goals["poses"] = {}
+    goals["poses"], goals["pose_of"] = {}, {}
     for o, pose in mapping("goal_poses").items():
         obj(o, f"task.goal_poses key {o!r}")
         if pose == "initial":
             goals["poses"][o] = "initial"
             continue
+        if isinstance(pose, str) and pose in objects:  # where that object stands at the start (``replace``)
+            goals["poses"][o], goals["pose_of"][o] = frames[pose].copy(), pose
+            continue
         try:
             qw, qx, qy, qz, x, y, z = (float(v) for v in pose)
         except (TypeError, ValueError):
-            raise UserError(f"task.goal_poses.{o} = {pose!r} must be \"initial\" or [qw, qx, qy, qz, x, y, z].") from None
+            raise UserError(f"task.goal_poses.{o} = {pose!r} must be \"initial\", another object's name or "
+                            f"[qw, qx, qy, qz, x, y, z].") from None
         T = np.eye(4)
         T[:3, :3] = rotation({"w": qw, "x": qx, "y": qy, "z": qz}, f"task.goal_poses.{o}")
         T[:3, 3] = (x, y, z)

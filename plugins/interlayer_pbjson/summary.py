@@ -38,7 +38,8 @@ def describe(geometry) -> str:
     goals += [f"{o} on {s}" + ("" if g["members"][o] == (o,) else f" (any one of {', '.join(g['members'][o])})")
               for o, s in g["on"].items()]
     goals += [f"{o} stacked on {b}" for o, b in g["stackings"].items()]
-    goals += [f"{o} at " + ("its initial pose" if isinstance(p, str) else "({:.3f}, {:.3f}, {:.3f})".format(*p[:3, 3]))
+    goals += [f"{o} at " + ("its initial pose" if isinstance(p, str) else f"{g['pose_of'][o]}'s initial pose" if o in g.get("pose_of", {})
+                            else "({:.3f}, {:.3f}, {:.3f})".format(*p[:3, 3]))
               for o, p in g["poses"].items()]
     goals += [f"{o} cleaned (put on a sink)" for o in g["cleaned"]]
     goals += [f"{o} cooked (put on a stove once clean)" for o in g["cooked"]]
