@@ -300,6 +300,32 @@ def test_a_goal_pose_naming_another_object_is_where_that_object_starts(tmp_path,
     assert "Goals: a at b's initial pose; b at a's initial pose" in capsys.readouterr().out
 
 
+def test_a_base_pose_goal_is_a_final_drive_there(tmp_path, capsys):
+    """goal_config: [x, y, yaw] (the *namo* files, yaw written as pi): a go_to at the end; a file without
+    movable objects (trivial_namo) is read when its goal is such a drive."""
+    from dataclasses import replace
+
+    from interlayer.cli import main
+
+    data = scene(goal_config=[2.0, 0.0, math.pi])  # behind the table: a planned drive
+    data["task"]["object_names"] = []
+    p = load(tmp_path, data)
+    assert "(AtBaseGoal)" in p.goal and [a.name for a in p.domain.actions][-1] == "go_to"
+    g = p.geometry
+    w = g.initial_world()
+    assert g.goal_violations(w, {}) == ["goal not satisfied: the base is not at the goal pose [2.0, 0.0, 3.141592653589793]"]
+    assert g.goal_violations(replace(w, base=(2.0, 0.0, -math.pi)), {}) == []
+    path = tmp_path / "namo.json"
+    path.write_text(json.dumps(data))
+    assert main(["check", str(path)]) == 0
+    assert "Goals: the robot's base at (2.000, 0.000, 180 deg)" in capsys.readouterr().out
+    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=120"])
+    assert result.status == "solved", result.reason
+    assert [s.action for s in result.plan] == ["go_to"]
+    api.write_outputs(result, tmp_path / "out")
+    assert api.validate(tmp_path / "out") == []
+
+
 @pytest.mark.parametrize("edit, field", [
     (lambda d: d["bodies"][3]["links"][0][0].update(type="capsule"), "bodies[3] (a).links[0][0].type = 'capsule'"),
     (lambda d: d["task"].update(goal_regions={"ghost": "goal"}), "task.goal_regions key 'ghost'"),
@@ -307,6 +333,7 @@ def test_a_goal_pose_naming_another_object_is_where_that_object_starts(tmp_path,
     (lambda d: d["task"].update(goal_stackings={"a": "ghost"}), "task.goal_stackings.a = 'ghost'"),
     (lambda d: d["task"].update(goal_poses={"a": "somewhere"}), "task.goal_poses.a = 'somewhere'"),
     (lambda d: d["task"].update(goal_config="kneel"), "task.goal_config = 'kneel'"),
+    (lambda d: d["task"].update(goal_config=[1.0, 2.0]), "task.goal_config = [1.0, 2.0]: a base pose goal is [x, y, yaw]"),
     (lambda d: d["task"].update(grasp_types=["PINCH"]), "task.grasp_types"),
     (lambda d: d["bodies"][0]["links"][0][1].update(quat={"w": 0.92, "x": 0.38, "y": 0, "z": 0}), "bodies[0] (table).links[0][1].quat"),
     (lambda d: d["robots"][0]["conf"].update(l_elbow_flex_joint=[1.0]), "robots[0].conf.l_elbow_flex_joint"),

@@ -17,7 +17,8 @@ obstructions are learned with two arguments. What it adds:
   stove cooks.
 * ``go_home`` drives the base back to its start and the empty arms to their start configuration
   (``goal_config: "initial"``). It is the plan's last action: it adds ``(AtHome)`` and nothing may
-  pick or place after it (a satisficing planner otherwise goes home between picks).
+  pick or place after it (a satisficing planner otherwise goes home between picks). ``go_to`` is the
+  same for a base pose goal (``goal_config: [x, y, yaw]``): it drives there and adds ``(AtBaseGoal)``.
 
 Only what a file needs is in its domain (no sinks: no cleaning effect; no goal poses: no place_at_goal),
 so a holding-only file such as the paper's table grounds like Clutter-N.
@@ -29,7 +30,7 @@ from interlayer.domain import ActionSpec, DomainSpec, Skolem
 SLOTS = 2
 
 
-def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home: bool) -> DomainSpec:
+def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home: bool, go_to: bool = False) -> DomainSpec:
     preds = {
         "HandEmpty": ("arm",), "Other": ("arm", "arm"), "Holding": ("obj", "arm"), "Resting": ("obj",),
         "On": ("obj", "surf"),
@@ -62,10 +63,12 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
         preds.update({"Stove": ("surf",), "Cooked": ("obj",)})
         preds.setdefault("Cleaned", ("obj",))
         place_eff.append("(when (and (Stove ?s) (Cleaned ?o)) (Cooked ?o))")
-    if home:
-        preds["AtHome"] = ()
-        pick_pre.append("(not (AtHome))")
-        place_pre.append("(not (AtHome))")
+    final = "go_home" if home else "go_to" if go_to else None  # the last action, and the fact it adds
+    done = {"go_home": "AtHome", "go_to": "AtBaseGoal"}.get(final)
+    if done:
+        preds[done] = ()
+        pick_pre.append(f"(not ({done}))")
+        place_pre.append(f"(not ({done}))")
     if goal_poses:
         preds.update({"AtGoalPose": ("obj",), "HasGoalPose": ("obj",), "IsBPFGP": ("bpose", "obj", "arm"),
                       "IsGPFGP": ("pdpose", "obj", "arm")})
@@ -94,12 +97,12 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
             parameters=(("?o", "obj"), ("?arm", "arm"), ("?bp", "bpose"), ("?pd", "pdpose")),
             precondition=f"""(and (Holding ?o ?arm) (HasGoalPose ?o) (IsBPFGP ?bp ?o ?arm) (IsGPFGP ?pd ?o ?arm)
                                   (forall (?b - obj) (and (not (PDObstructs ?b ?pd)) (not (Occupies ?b ?o))))
-                                  {'(not (AtHome))' if home else ''})""",
+                                  {f'(not ({done}))' if done else ''})""",
             effect="(and (not (Holding ?o ?arm)) (HandEmpty ?arm) (Resting ?o) (AtGoalPose ?o))",
             learn={"obstruction": ("(PDObstructs ?blocker ?pd)",)}, pose_generator="pbjson:place"))
-    if home:
-        actions.append(ActionSpec(name="go_home", parameters=(), precondition="(not (AtHome))", effect="(AtHome)",
-                                  pose_generator="pbjson:go_home"))
+    if done:
+        actions.append(ActionSpec(name=final, parameters=(), precondition=f"(not ({done}))", effect=f"({done})",
+                                  pose_generator=f"pbjson:{final}"))
     return DomainSpec(
         name="pr2-pbjson",
         types={"obj": None, "arm": None, "surf": None, "slot": None},

@@ -119,7 +119,7 @@ def build_problem(scene, source) -> Problem:
         placing = any(scene.goals[k] for k in ("on", "stackings", "poses", "cleaned", "cooked"))
         if not placing and abs(area(tables[0].polygon) - (table[1] - table[0]) * (table[3] - table[2])) < 1e-6:
             clutter_table = tables[0].name  # the paper's kind of scene: Clutter's put-down sampler applies as it is
-    pts = [scene.base[:2]] + [p for o in scene.fixed + scene.objects if o.name not in scene.floors
+    pts = [scene.base[:2]] + ([scene.goals["base"][:2]] if scene.goals["base"] else []) + [p for o in scene.fixed + scene.objects if o.name not in scene.floors
                               for p in [o.pose[:2]]]
     lo = (min(p[0] for p in pts) - 1.2, max(p[0] for p in pts) + 1.2)
     hi = (min(p[1] for p in pts) - 1.2, max(p[1] for p in pts) + 1.2)
@@ -129,7 +129,7 @@ def build_problem(scene, source) -> Problem:
     torso = torso_height(scene)
     if scene.torso is not None and torso > scene.torso + 1e-9:
         log.info("torso raised from %.3f (robots[0].conf) to %.3f m to reach surfaces at %.2f m", scene.torso, torso,
-                 max(s.z for s in spots.values()))
+                 max((s.z for s in spots.values()), default=main_top))
     extra = {"table_top": float(main_top), "base_limits": (lo, hi), "torso_height": torso, "torso_conf": scene.torso,
              "supports": tuple(o.name for o in scene.fixed if any(_body(o.name, s) for s in spots.values())),
              "surfaces": spots, "colors": scene.colors, "offsets": scene.offsets, "arms": scene.arms, "goals": goals,
@@ -148,7 +148,7 @@ def build_problem(scene, source) -> Problem:
     slots = [f"s{k + 1}" for k in range(SLOTS)]
     kinds = {s.kind for s in spots.values()}
     domain = pbjson_domain(tops="top" in kinds, goal_poses=bool(goals["poses"]), sinks="sink" in kinds,
-                           stoves="stove" in kinds, home=goals["home"])
+                           stoves="stove" in kinds, home=goals["home"], go_to=bool(goals["base"]))
     objects = {o: "obj" for o in names}
     objects.update({a: "arm" for a in ARMS})
     objects.update({s: "slot" for s in slots})
@@ -185,6 +185,8 @@ def build_problem(scene, source) -> Problem:
     parts += [f"(Cleaned {o})" for o in goals["cleaned"]] + [f"(Cooked {o})" for o in goals["cooked"]]
     if goals["home"]:
         parts.append("(AtHome)")
+    if goals["base"]:
+        parts.append("(AtBaseGoal)")
     source = {**source, "layout": layout.to_json()}
     return Problem(domain, objects, frozenset(init), f"(and {' '.join(parts)})", geometry, source, name=scene.name)
 

@@ -21,3 +21,4 @@ def interlayer_register_pose_generators(registry):
     registry.add("pbjson:place", samplers + "PBSampler", "pybullet-planning files: a stable spot on the step's surface or region, "
                                             "or the goal pose, + base pose, by IK")
     registry.add("pbjson:go_home", samplers + "go_home", "pybullet-planning files: the robot's start configuration (goal_config)")
+    registry.add("pbjson:go_to", samplers + "go_to", "pybullet-planning files: the base pose goal (goal_config: [x, y, yaw])")

@@ -9,7 +9,7 @@
   the best approaches found so far (Clutter's corridors); for
   ``place_at_goal`` the goal pose itself (and its symmetric yaws). Then a base pose, IK, the lowering
   and the retreat; candidates with fewer objects in the way first.
-* ``pbjson:go_home``: the start configuration.
+* ``pbjson:go_home``: the start configuration; ``pbjson:go_to``: the file's base pose goal.
 """
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ import numpy as np
 from interlayer.refine import Candidate
 from interlayer_clutter.samplers import ClutterSampler, fmt, in_corridors, putdown_motion
 from interlayer_pr2.scene import REST_GAP, _radius
-from interlayer_pr2.world import pose4
+from interlayer_pr2.world import pose4, wrap
 
 from .scene import inside, polygon_of
 
@@ -145,6 +145,13 @@ class PBSampler(ClutterSampler):
 def go_home(problem, step, world, rng):
     """The one way home: the start base pose (the arms' start joints are the geometry's)."""
     yield Candidate((tuple(problem.geometry.layout.base),), {}, "back to the start configuration")
+
+
+def go_to(problem, step, world, rng):
+    """The one base pose of the file's goal_config [x, y, yaw]."""
+    x, y, yaw = problem.geometry.goals["base"]
+    base = (x, y, wrap(yaw))  # the files write pi, outside the planner's [-pi, pi) yaw bounds
+    yield Candidate((base,), {}, f"to the goal base pose {fmt(base)}")
 
 
 def _spec_at(spec, P):

@@ -254,7 +254,7 @@ def read_scene(data, label) -> Scene:
         for n in _names(task, key):
             if n not in known:
                 raise UserError(f"task.{key} names {n!r}, which is not a body of the file.")
-    if not movable:
+    if not movable and not isinstance(task.get("goal_config"), list):  # a drive alone needs none (trivial_namo)
         raise UserError("task.object_names is empty: the problem has no movable object.")
     for reserved in ("left", "right"):
         if reserved in known:
@@ -440,15 +440,23 @@ def read_goals(task, frames, surfaces) -> dict:
     if goals["cooked"] and not _names(task, "stove_names"):
         raise UserError(f"task.goal_cooked = {goals['cooked']!r} but the file has no stove (task.stove_names).")
     config = task.get("goal_config")
-    if config not in (None, "initial"):
-        raise UserError(f"task.goal_config = {config!r}: only \"initial\" (the robot returns to its start) is supported.")
-    goals["home"] = config == "initial"
+    goals["home"], goals["base"] = config == "initial", None
+    if isinstance(config, list):  # a base pose to drive to (the *namo* files)
+        try:
+            x, y, yaw = (float(v) for v in config)
+        except (TypeError, ValueError):
+            raise UserError(f"task.goal_config = {config!r}: a base pose goal is [x, y, yaw].") from None
+        goals["base"] = (x, y, yaw)
+    elif config not in (None, "initial"):
+        raise UserError(f"task.goal_config = {config!r}: give \"initial\" (the robot returns to its start) or a base "
+                        f"pose [x, y, yaw].")
     twice = set(goals["on"]) & set(goals["stackings"]) | (set(goals["on"]) | set(goals["stackings"])) & set(goals["poses"])
     if twice:
         o = sorted(twice)[0]
         raise UserError(f"task: {o!r} has two placement goals (goal_regions, goal_stackings, goal_poses); keep one.")
     if goals["holding"] and set(goals["holding"]) <= set(goals["on"]) | set(goals["stackings"]) | set(goals["poses"]):
         raise UserError(f"task.goal_holding = {holding!r} must also rest somewhere by another goal; keep one.")
-    if not any((goals["holding"], goals["on"], goals["stackings"], goals["poses"], goals["cleaned"], goals["cooked"], goals["home"])):
+    if not any((goals["holding"], goals["on"], goals["stackings"], goals["poses"], goals["cleaned"], goals["cooked"], goals["home"],
+                goals["base"])):
         raise UserError(f"task: the file has no goal ({', '.join(GOAL_KEYS)} are all empty).")
     return goals

@@ -45,6 +45,8 @@ def describe(geometry) -> str:
     goals += [f"{o} cooked (put on a stove once clean)" for o in g["cooked"]]
     if g["home"]:
         goals.append("the robot back at its start configuration")
+    if g["base"]:
+        goals.append("the robot's base at ({:.3f}, {:.3f}, {:.0f} deg)".format(*g["base"][:2], math.degrees(g["base"][2])))
     lines.append("Goals: " + "; ".join(goals))
     for note in extra.get("notes", []):
         lines.append(f"Note: {note}")

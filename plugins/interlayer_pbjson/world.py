@@ -4,7 +4,8 @@ robot's start configuration from the file, ``go_home``, and the goal checks the 
 * The arms start where ``robots[0].conf`` puts them; an empty arm that is not tucked is tucked before
   the base drives (an outstretched arm would sweep the tables).
 * ``place_at_goal`` refines like ``place`` (the put-down pose is the goal pose).
-* ``go_home``: tuck, drive back to the start base pose, then move each empty arm to its start joints.
+* ``go_home``: tuck, drive back to the start base pose, then move each empty arm to its start joints;
+  ``go_to``: tuck and drive to the file's base pose goal.
 * The validator (interlayer_pr2.validate, with this domain's rules) asks ``resting_on`` where a released
   object rests and ``goal_violations`` whether the goals hold, replaying the releases for clean / cook.
 """
@@ -159,6 +160,8 @@ class PBGeometry(PR2Geometry):
             for arm in ARMS:
                 if arm not in world.held and np.max(np.abs(np.subtract(world.arms[arm], self.start_arms[arm]))) > HOME_TOL:
                     out.append(f"goal not satisfied: the {arm} arm is not back at its start configuration")
+        if g["base"] and self.base_space.distance(np.asarray(world.base, float), np.asarray(g["base"], float)) > HOME_TOL:
+            out.append(f"goal not satisfied: the base is not at the goal pose {list(g['base'])}")
         return out
 
     # -- refinement --------------------------------------------------------------------------------
@@ -174,7 +177,7 @@ class PBGeometry(PR2Geometry):
     def refine_step(self, step, world, candidate, motion) -> StepOutcome:
         acc = [0.0]
         try:
-            drives = step.action == "go_home" or (
+            drives = step.action in ("go_home", "go_to") or (
                 len(candidate.waypoints) == 3 and
                 self.base_space.distance(np.asarray(world.base, float), np.asarray(candidate.waypoints[0], float)) > 1e-9)
             segs = []
@@ -190,6 +193,9 @@ class PBGeometry(PR2Geometry):
                     return failed
             if step.action == "go_home":
                 out = self._go_home(world, motion, acc)
+            elif step.action == "go_to":
+                w, failed = self.drive(world, candidate.waypoints[0], "go_to drive", out_segs := [], motion, acc)
+                out = failed or StepOutcome(True, replace(w, tloc={}), out_segs)
             else:
                 if step.action == "place_at_goal":
                     step = replace(step, action="place")
