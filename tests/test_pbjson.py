@@ -309,6 +309,7 @@ def test_a_base_pose_goal_is_a_final_drive_there(tmp_path, capsys):
 
     data = scene(goal_config=[2.0, 0.0, math.pi])  # behind the table: a planned drive
     data["task"]["object_names"] = []
+    data["task"]["goal_holding"] = False  # as those files write "nothing to hold"
     p = load(tmp_path, data)
     assert "(AtBaseGoal)" in p.goal and [a.name for a in p.domain.actions][-1] == "go_to"
     g = p.geometry

@@ -393,7 +393,9 @@ def read_goals(task, frames, surfaces) -> dict:
         return value
 
     holding = task.get("goal_holding")
-    if holding is not None and not isinstance(holding, (str, list)) or holding == []:
+    if holding is False or holding == []:  # how the *namo* files write "nothing to hold"
+        holding = None
+    if holding is not None and not isinstance(holding, (str, list)):
         raise UserError(f"task.goal_holding = {holding!r} must be an object's name, a class or a list of them.")
     goals = {"holding": None, "holding_as": holding, "members": {}}
     if holding is not None:
