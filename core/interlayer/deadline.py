@@ -16,10 +16,13 @@ import time
 from contextlib import contextmanager
 
 
+OVER = "the run's time limit is over"
+
+
 class DeadlineExceeded(BaseException):
     """The run's time limit is over; ``where`` names the plugin call that was running, if any."""
 
-    def __init__(self, message: str = "the run's time limit is over", where: str = ""):
+    def __init__(self, message: str = OVER, where: str = ""):
         super().__init__(message)
         self.where = where
 

@@ -208,8 +208,6 @@ class InterfaceLayer:
         from .supervisor import Supervisor
 
         self.deadline = Deadline(self.settings.time_limit)
-        if self.motion is not None:  # a motion planner never plans past the run's time limit
-            self.motion.deadline = self.deadline.at
         supervisor = Supervisor(self.deadline, self.on_stuck, self._stuck_result)
         try:
             with deadlines.running(self.deadline):
@@ -237,7 +235,7 @@ class InterfaceLayer:
         limit = f"the time limit of {self.settings.time_limit:g} s"
         if stopped:
             return f"{limit} was reached and {stopped} did not return: it was stopped"
-        if exc.args and exc.args[0] != DeadlineExceeded().args[0]:
+        if exc.args and exc.args[0] != deadlines.OVER:
             return f"{exc.args[0]}; the run stops there"
         where = f" inside {exc.where}" if exc.where else ""
         return f"{limit} was reached{where} before a refinement was found"

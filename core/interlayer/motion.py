@@ -142,7 +142,6 @@ class MotionPlanner:
     time_limit: float = 1.0
     stats: object = None
     options: dict = field(default_factory=dict)
-    deadline: float | None = None  # time.perf_counter() at which the run's time limit ends (set by the loop)
     seed: int = 0  # the run's seed (set by the loop): a randomized planner derives its RNG seeds from it
     # A planner that searches (sampling, optimisation): a collision-free straight line answers without
     # the search, and so does a goal that collides with movables (see ``plan``). False for planners
@@ -159,8 +158,8 @@ class MotionPlanner:
         deadlines.check()
         t0 = time.perf_counter()
         limit = self.time_limit if time_limit is None else time_limit
-        if self.deadline is not None and not self.counts_work:
-            limit = max(0.0, min(limit, self.deadline - t0))
+        if not self.counts_work:
+            limit = min(limit, deadlines.time_left())
         space, start, goal = query.space, query.start, query.goal
         start_ok, goal_ok = query.is_valid(start), query.is_valid(goal)
         path = None
@@ -186,8 +185,8 @@ class MotionPlanner:
                 return MotionPlan(False, obstructions=tuple(sorted(blockers)), time=time.perf_counter() - t0,
                                   reason="the goal configuration collides with " + ", ".join(sorted(blockers)))
         if relaxed is None:
-            if self.deadline is not None and not self.counts_work:
-                limit = max(0.0, min(limit, self.deadline - time.perf_counter()))
+            if not self.counts_work:
+                limit = min(limit, deadlines.time_left())
             relaxed = self._solve(query, True, limit)
         deadlines.check()  # a search cut by the run's deadline decides nothing
         if relaxed is None:

@@ -17,7 +17,6 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from interlayer import deadline as deadlines
 from interlayer.motion import BLOCK as FINE_BLOCK
 from interlayer.motion import Clearance, ConfigSpace, InterpolatingPlanner, MotionQuery, points_valid
 from interlayer.refine import ROBOT_MOVED, Failure, StepOutcome
@@ -281,7 +280,6 @@ class PR2Geometry:
     # -- queries ---------------------------------------------------------------------------------
     def _timed(self, fn, acc):
         def wrapped(v):
-            deadlines.check()  # every collision check of a query: a long sweep stops at the run's limit
             t0 = time.perf_counter()
             try:
                 return fn(v)
