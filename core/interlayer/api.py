@@ -80,7 +80,8 @@ def build_problem(host: PluginHost, config: dict):
         if problem.drawing is None:
             problem.drawing = comp.drawing
         if not isinstance(problem.geometry, Guarded):
-            problem.geometry = _GeometryGuard(problem.geometry, comp.plugin, f"{comp.label} geometry", GEOMETRY_METHODS)
+            checks = {**dict.fromkeys(GEOMETRY_METHODS), "refine_step": lambda outcome, *_: contracts.step_outcome(outcome)}
+            problem.geometry = Guarded(problem.geometry, comp.plugin, f"{comp.label} geometry", checks)
     return problem
 
 
@@ -106,7 +107,8 @@ def make_motion_planner(host: PluginHost, config: dict, name: str, stats: Stats)
         motion = comp.factory(options)
     motion.stats = stats
     motion.seed = config["planner"]["seed"]
-    return _MotionPlannerGuard(motion, comp.plugin, comp.label, ("plan",))
+    # its answers are checked here, so that a wrong one is this plugin's fault, not the domain's that asked
+    return Guarded(motion, comp.plugin, comp.label, {"plan": lambda res, query, *_: contracts.motion_plan(res, query)})
 
 
 class _TaskPlannerGuard(Guarded):
@@ -114,37 +116,16 @@ class _TaskPlannerGuard(Guarded):
     name its plugin."""
 
     def __init__(self, task, comp):
-        super().__init__(task, comp.plugin, comp.label, ("plan", "validate_plan", "library_check"))
+        checks = {"plan": lambda res, model, *_: contracts.task_result(res, model), "validate_plan": None,
+                  "library_check": None}
+        super().__init__(task, comp.plugin, comp.label, checks)
 
     def plan(self, model, state, timeout):
         plugin, component, _ = self._guard
         res = self.__getattr__("plan")(model, state, timeout)
-        with blame(plugin, f"{component} (plan)"):
-            contracts.task_result(res, model)
         if res.status == "error":
             raise PluginFault(plugin, component, ComponentFailed(res.reason))
         return res
-
-
-class _MotionPlannerGuard(Guarded):
-    """A motion planner whose exceptions and answers of the wrong type name its plugin (not the
-    domain's, whose geometry asks it)."""
-
-    def plan(self, query, *args, **kwargs):
-        plugin, component, _ = self._guard
-        res = self.__getattr__("plan")(query, *args, **kwargs)
-        with blame(plugin, f"{component} (plan)"):
-            return contracts.motion_plan(res, query)
-
-
-class _GeometryGuard(Guarded):
-    """A domain's geometry whose exceptions and refinement outcomes of the wrong type name its plugin."""
-
-    def refine_step(self, *args, **kwargs):
-        plugin, component, _ = self._guard
-        outcome = self.__getattr__("refine_step")(*args, **kwargs)
-        with blame(plugin, f"{component} (refine_step)"):
-            return contracts.step_outcome(outcome)
 
 
 def generators_for(host: PluginHost, model: TaskModel, config: dict) -> dict:

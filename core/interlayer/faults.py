@@ -82,20 +82,31 @@ def blamed(fn, plugin: str, component: str):
 
 class Guarded:
     """A plugin object whose listed methods attribute their exceptions to the plugin; every other
-    attribute is the object's own (read and written through)."""
+    attribute is the object's own (read and written through). ``methods`` names them, or maps each to
+    a check of its answer, ``check(answer, *args)`` (``interlayer.contracts``), whose ComponentFailed
+    is the plugin's fault too."""
 
-    def __init__(self, obj, plugin: str, component: str, methods: tuple):
+    def __init__(self, obj, plugin: str, component: str, methods):
+        checks = dict(methods) if isinstance(methods, dict) else dict.fromkeys(methods)
         object.__setattr__(self, "_obj", obj)
-        object.__setattr__(self, "_guard", (plugin, component, frozenset(methods)))
+        object.__setattr__(self, "_guard", (plugin, component, checks))
 
     def __getattr__(self, name):
         if name in ("_obj", "_guard"):  # not yet set (copying, unpickling): no recursion
             raise AttributeError(name)
         value = getattr(self._obj, name)
-        plugin, component, methods = self._guard
-        if name in methods and callable(value):
+        plugin, component, checks = self._guard
+        if name not in checks or not callable(value):
+            return value
+        check = checks[name]
+        if check is None:
             return blamed(value, plugin, f"{component} ({name})")
-        return value
+
+        def checked(*args, **kwargs):
+            with blame(plugin, f"{component} ({name})"):
+                return check(value(*args, **kwargs), *args)
+
+        return checked
 
     def __setattr__(self, name, value):
         setattr(self._obj, name, value)
