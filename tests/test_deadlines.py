@@ -126,7 +126,7 @@ def test_a_pr2_run_gives_the_same_trajectory_on_a_slow_machine_and_a_fast_clock(
     """The same seed on a machine 'loaded' two ways: every collision check slowed down, and the
     Python clock running 10 times faster. Motion queries count work (state checks), so both runs
     refine the same plan into the same trajectory; a wall-clock budget per query would not."""
-    from interlayer_pr2.world import PR2Geometry
+    from interlayer_manip.world import PR2Geometry
 
     config = {"problem.clutter": 3, "motion_planner.time_limit": 0.05, "planner.seed": 1,
               "planner.time_limit": 6000}

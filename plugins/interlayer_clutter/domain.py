@@ -19,8 +19,8 @@ chosen for Fast Downward's speed with 40 objects (see docs/benchmarks.md):
 from __future__ import annotations
 
 from interlayer.domain import ActionSpec, DomainSpec, Problem, Skolem
-from interlayer_pr2.scene import Layout
-from interlayer_pr2.world import ARMS
+from interlayer_manip.scene import Layout
+from interlayer_manip.world import ARMS
 
 SLOTS = 2
 
@@ -79,7 +79,7 @@ CLUTTER_DOMAIN = DomainSpec(
 
 
 def clutter_problem(layout: Layout, source: dict, name: str, slots: int = SLOTS) -> Problem:
-    from interlayer_pr2.world import PR2Geometry
+    from interlayer_manip.world import PR2Geometry
 
     geometry = PR2Geometry(layout)
     names = [o.name for o in layout.objects]

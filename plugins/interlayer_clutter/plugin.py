@@ -5,7 +5,7 @@ PARAMS = {"objects": 15, "approach": "free"}
 
 
 def make_problem(params, seed):
-    from interlayer_pr2.plugin import timing
+    from interlayer_manip.timing import timing
 
     from .scene import make_clutter_problem
 
@@ -16,11 +16,11 @@ def make_problem(params, seed):
 
 @hookimpl
 def interlayer_register_domains(registry):
-    from interlayer_pr2.plugin import TIMING
+    from interlayer_manip.timing import TIMING
 
     registry.add("clutter", make_problem,
                  "the paper's cluttered table (Clutter-N): a PR2 must hold one of N cylinders, clearing those in the way",
-                 params={**PARAMS, **TIMING}, drawing="interlayer_pr2.draw")
+                 params={**PARAMS, **TIMING}, drawing="interlayer_manip.draw")
 
 
 @hookimpl

@@ -7,9 +7,9 @@ from dataclasses import replace
 
 import numpy as np
 from interlayer.refine import Candidate, EpochState
-from interlayer_pr2.generators import _base_free
-from interlayer_pr2.scene import REST_GAP, base_limits, table_top
-from interlayer_pr2.world import ARMS, pose4, wrap
+from interlayer_manip.generators import _base_free
+from interlayer_manip.scene import REST_GAP, base_limits, table_top
+from interlayer_manip.world import ARMS, pose4, wrap
 
 
 def base_near(geometry, x, y, rng, reach=(0.55, 0.95), heading=None):
@@ -112,7 +112,7 @@ class ClutterSampler(EpochState):
     def grasp_candidates(self, problem, world, obj, arm, tries: int = 40):
         """(base, kind, T, waypoints, tool xy path) candidates for picking obj with arm where it stands;
         static checks only (IK, fixed obstacles), so they hold in every world with obj at this pose."""
-        from interlayer_pr2.generators import (_bearing, _problem_grasps, _waypoints, check_graspable, check_hand_fits,
+        from interlayer_manip.generators import (_bearing, _problem_grasps, _waypoints, check_graspable, check_hand_fits,
                                                grasp_poses)
 
         geometry = problem.geometry
@@ -229,7 +229,7 @@ class ClutterSampler(EpochState):
     def putdown_candidates(self, problem, obj, arm, world, rng, corridors, limit, tries: int = 80):
         """The ``limit`` best (ordering key, rank, base, x, y, object pose, tool pose, lowering, retreat)
         for putting down obj held in arm."""
-        from interlayer_pr2.generators import _putdown
+        from interlayer_manip.generators import _putdown
 
         geometry = problem.geometry
         G = world.held[arm][1]
@@ -273,7 +273,7 @@ def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None):
     if its ``heading`` is fixed), the object's pose ``pose_at(tool heading)`` (None: none there), IK, the
     lowering and the retreat. Returns (base, object pose, tool pose, lowering, retreat, movables on the
     lowering and retreat, movables on the straight joint-space line from the arm's posture) or None."""
-    from interlayer_pr2.generators import LIFT, PRE_GRASP, _line, trans
+    from interlayer_manip.generators import LIFT, PRE_GRASP, _line, trans
 
     base = base_near(geometry, x, y, rng, heading=heading)
     if base is None or not _base_free(geometry, world, base, tuck=arm):
@@ -316,8 +316,8 @@ def _with_hover(geometry, world, arm, T, wps, rng, obj):
     """Prefix the approach with a vertical descent from HOVER above the pre-grasp, so that the free
     transit ends above the clutter and only the descent and the approach run between objects
     (obstructions learned from a failure then name the objects really in the way)."""
-    from interlayer_pr2.generators import _line
-    from interlayer_pr2.world import PRE_GRASP, trans
+    from interlayer_manip.generators import _line
+    from interlayer_manip.world import PRE_GRASP, trans
 
     approach, lift = wps
     pre_T = T @ trans(-PRE_GRASP, 0, 0)

@@ -6,8 +6,8 @@ import math
 import numpy as np
 from interlayer.errors import UserError
 from interlayer.refine import stable_seed
-from interlayer_pr2.scene import REST_GAP, Layout, ObjectSpec
-from interlayer_pr2.world import ARMS
+from interlayer_manip.scene import REST_GAP, Layout, ObjectSpec
+from interlayer_manip.world import ARMS
 
 from .domain import clutter_problem
 from .samplers import ClutterSampler

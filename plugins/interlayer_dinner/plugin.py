@@ -51,7 +51,7 @@ def interlayer_register_domains(registry):
     registry.add("dinner", make_problem,
                  "Dinner-N: a PR2 lays out a dinner table in another room (moving between rooms costs 100): a tray "
                  "carried with both hands, stacking checked by a stackability module (objects = N)",
-                 params=PARAMS, drawing="interlayer_pr2.draw")
+                 params=PARAMS, drawing="interlayer_manip.draw")
 
 
 @hookimpl

@@ -20,8 +20,8 @@ from interlayer.domain import GroundStep
 from interlayer.motion import MotionQuery
 from interlayer.refine import Failure, StepOutcome
 from interlayer_pinocchio import TUCKED_ARMS
-from interlayer_pr2.scene import REST_GAP, _radius
-from interlayer_pr2.world import CARRY, PADDING, PR2Geometry, World, _failure, _holding, pose4, rz, trans
+from interlayer_manip.scene import REST_GAP, _radius
+from interlayer_manip.world import CARRY, PADDING, PR2Geometry, World, _failure, _holding, pose4, rz, trans
 
 from .scene import TOP, TRAY
 
@@ -341,7 +341,7 @@ class DinnerGeometry(PR2Geometry):
         return out
 
     def validate(self, plan, trajectory: dict) -> list[str]:
-        from interlayer_pr2.validate import validate_trajectory
+        from interlayer_manip.validate import validate_trajectory
 
         from . import validate
 
@@ -357,14 +357,14 @@ class DinnerGeometry(PR2Geometry):
                 f"stack; e.g. " + "; ".join(r for _, _, r in pairs[:3]))
 
     def draw_scene(self, scene, world=None):
-        from interlayer_pr2 import draw
+        from interlayer_manip import draw
 
         names = draw.draw_scene(self, scene, world)
         scene.view_direction = (0.2, -1.0, 1.3)  # from the side: both rooms, the doorway between them
         return names
 
     def animation_frames(self, scene, trajectory):
-        from interlayer_pr2 import draw
+        from interlayer_manip import draw
 
         return draw.animation_frames(self, scene, trajectory)
 

@@ -6,7 +6,7 @@ robot's start configuration from the file, ``go_home``, and the goal checks the 
 * ``place_at_goal`` refines like ``place`` (the put-down pose is the goal pose).
 * ``go_home``: tuck, drive back to the start base pose, then move each empty arm to its start joints;
   ``go_to``: tuck and drive to the file's base pose goal.
-* The validator (interlayer_pr2.validate, with this domain's rules) asks ``resting_on`` where a released
+* The validator (interlayer_manip.validate, with this domain's rules) asks ``resting_on`` where a released
   object rests and ``goal_violations`` whether the goals hold, replaying the releases for clean / cook.
 """
 from __future__ import annotations
@@ -17,9 +17,9 @@ from dataclasses import replace
 import numpy as np
 from interlayer.errors import UserError
 from interlayer.refine import StepOutcome
-from interlayer_pr2.scene import REST_GAP
-from interlayer_pr2.validate import upright
-from interlayer_pr2.world import ARMS, PADDING, PR2Geometry, _failure, _holding, pose4, wrap
+from interlayer_manip.scene import REST_GAP
+from interlayer_manip.validate import upright
+from interlayer_manip.world import ARMS, PADDING, PR2Geometry, _failure, _holding, pose4, wrap
 
 from .scene import ON_TOL, inside, top_name
 
@@ -247,7 +247,7 @@ class PBGeometry(PR2Geometry):
         """The PR2 validator with this domain's resting places and goals (its ``rules``)."""
         from types import SimpleNamespace
 
-        from interlayer_pr2.validate import validate_trajectory
+        from interlayer_manip.validate import validate_trajectory
 
         rules = SimpleNamespace(rests=lambda g, world, obj, P: g.resting_on(obj, P, world),
                                 goal=lambda g, world: g.goal_violations(world, trajectory))
@@ -270,6 +270,6 @@ class PBGeometry(PR2Geometry):
         return draw_scene(self, scene, world)
 
     def animation_frames(self, scene, trajectory):
-        from interlayer_pr2 import draw
+        from interlayer_manip import draw
 
         return draw.animation_frames(self, scene, trajectory)

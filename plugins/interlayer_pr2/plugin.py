@@ -1,12 +1,7 @@
 """Registers the PR2 pick-and-place domain and its pose generators."""
-import math
-
 from interlayer import hookimpl
+from interlayer_manip.timing import TIMING, timing
 
-# Trajectory timing (TOPP-RA): arm joints at most their URDF velocity limits; PR2 domains may accept these keys too.
-TIMING = {"arm_acceleration": 1.5,  # rad/s^2, every arm joint
-          "base_velocity": [0.5, 0.5, 1.0],  # m/s, m/s, rad/s (x, y, theta; the URDF gives none)
-          "base_acceleration": [0.5, 0.5, 1.0]}  # m/s^2, m/s^2, rad/s^2
 PARAMS = {"goal": "hold", "grasps": ["side"], "target_radius": 0.035, "clutter": 0, **TIMING}
 
 
@@ -16,29 +11,13 @@ def make_problem(params, seed):
     return problem
 
 
-def timing(params):
-    """The timing keys, checked: positive numbers (three for the base: x, y, theta)."""
-    from interlayer.errors import UserError
-
-    out = {}
-    for key, n in (("arm_acceleration", 1), ("base_velocity", 3), ("base_acceleration", 3)):
-        value = params.get(key, TIMING[key])
-        items = value if n > 1 and isinstance(value, list) else [value]
-        if len(items) != n or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < math.inf
-                                  for v in items):
-            what = "a positive number" if n == 1 else "a list of three positive numbers (x, y, theta)"
-            raise UserError(f"problem.{key} must be {what}, got {value!r}.")
-        out[key] = value
-    return out
-
-
 def _make_problem(params, seed):
     from interlayer.domain import Problem
     from interlayer.errors import UserError
+    from interlayer_manip.scene import make_layout
+    from interlayer_manip.world import ARMS, PR2Geometry
 
     from .domain import DOMAIN
-    from .scene import make_layout
-    from .world import ARMS, PR2Geometry
 
     goal = params["goal"]
     if goal not in ("hold", "place", "tidy"):
@@ -84,12 +63,12 @@ def _make_problem(params, seed):
 def interlayer_register_domains(registry):
     registry.add("pr2", make_problem,
                  "a PR2 picks a cylinder from a cubby whose mouth another cylinder blocks (Fig. 3 actions, both arms)",
-                 params=PARAMS, drawing="interlayer_pr2.draw")
+                 params=PARAMS, drawing="interlayer_manip.draw")
 
 
 @hookimpl
 def interlayer_register_pose_generators(registry):
-    generators = "interlayer_pr2.generators:"  # imported when selected
+    generators = "interlayer_manip.generators:"  # imported when selected
 
     registry.add("pr2:move_base", generators + "move_base", "base poses in an annulus around the object or put-down spot")
     registry.add("pr2:pick", generators + "pick", "side (and top) grasps with pre-grasp and raise waypoints, by IK")

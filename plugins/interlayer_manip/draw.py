@@ -1,7 +1,7 @@
 """How the PR2 domain draws itself in a 3D view (used by the meshcat visualizer).
 
 Two functions with the geometry as first argument (the visualizer finds them as
-``interlayer_pr2.draw``)::
+``interlayer_manip.draw``)::
 
     draw_scene(geometry, scene, world=None) -> {problem object: scene name}
     animation_frames(geometry, scene, trajectory) -> [{scene name: 4x4 pose, "@step": i}, ...]

@@ -22,7 +22,7 @@ from interlayer.motion import Clearance, ConfigSpace, InterpolatingPlanner, Moti
 from interlayer.refine import ROBOT_MOVED, Failure, StepOutcome
 from interlayer.trace import Stats
 
-from .plugin import TIMING  # defaults, overridden by the problem keys of the same names (layout.extra)
+from .timing import TIMING  # defaults, overridden by the problem keys of the same names (layout.extra)
 from .scene import Layout, base_limits
 
 ARMS = ("left", "right")
