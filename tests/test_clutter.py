@@ -326,7 +326,7 @@ def test_equally_clear_grasps_come_nearest_to_the_robot_first():
     from dataclasses import replace
 
     from interlayer_clutter.samplers import ClutterSampler
-    from interlayer_manip.world import wrap
+    from interlayer_manip.state import wrap
 
     problem = _problem(["problem.objects=15", "planner.seed=0"])
     world = problem.geometry.initial_world()

@@ -115,7 +115,7 @@ def pr2_problem():
 
 def _reach_query(problem):
     """Left arm: from an IK solution in front of the robot 16 cm straight forward and down."""
-    from interlayer_manip.world import pose4
+    from interlayer_manip.state import pose4
 
     g = problem.geometry
     w = g.initial_world()

@@ -112,7 +112,7 @@ def test_initial_pose_goal_holds_at_the_start_and_after_a_return(tmp_path):
     assert ("AtGoalPose", "a") in p.init
     P = w.objects["a"]
     assert g.at_goal_pose("a", P)
-    from interlayer_manip.world import pose4, rz
+    from interlayer_manip.state import pose4, rz
 
     assert g.at_goal_pose("a", P @ rz(math.pi / 2))  # a square box: any quarter turn is the same pose
     assert not g.at_goal_pose("a", pose4(P[0, 3] + 0.05, P[1, 3], P[2, 3], 0.0))
@@ -202,7 +202,7 @@ def test_clean_and_cook_semantics(tmp_path):
     assert ("Cleaned", "a") in clean and ("On", "a", "sink") in clean
     assert ("Cooked", "a") in place(clean, "stove")
     g = p.geometry
-    from interlayer_manip.world import pose4
+    from interlayer_manip.state import pose4
 
     on = {"sink": pose4(0.0, 1.2, 0.802, 0.0), "stove": pose4(0.0, -1.2, 0.802, 0.0)}  # resting on their tops
     rel = lambda k: {"kind": "release", "arm": "left", "object": "a", "pose": on[k].tolist()}  # noqa: E731

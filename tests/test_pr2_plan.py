@@ -150,7 +150,7 @@ def test_a_grasp_whose_hand_hits_a_panel_is_rejected_without_ik():
 
     from interlayer.api import prepare
     from interlayer_manip.generators import _waypoints
-    from interlayer_manip.world import pose4
+    from interlayer_manip.state import pose4
 
     run = prepare(EXAMPLE, ["planner.seed=0"])
     geo = run.problem.geometry
@@ -205,7 +205,7 @@ def test_the_cubby_transit_goes_through_the_staging_point():
     from interlayer.domain import GroundStep
     from interlayer.motion import InterpolatingPlanner
     from interlayer_manip.generators import move_base
-    from interlayer_manip.world import trans
+    from interlayer_manip.state import trans
 
     run = prepare(EXAMPLE, ["planner.seed=0"])
     geo = run.problem.geometry
@@ -247,7 +247,7 @@ def test_the_blockwise_fine_check_agrees_with_checking_every_point():
     import numpy as np
 
     from interlayer.api import prepare
-    from interlayer_manip.world import FINE_BLOCK
+    from interlayer.motion import BLOCK as FINE_BLOCK
 
     geo = prepare(EXAMPLE, ["planner.seed=0"]).problem.geometry
     world = geo.initial_world()

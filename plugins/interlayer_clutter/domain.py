@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from interlayer.domain import ActionSpec, DomainSpec, Problem, Skolem
 from interlayer_manip.scene import Layout
-from interlayer_manip.world import ARMS
+from interlayer_manip.state import ARMS
 
 SLOTS = 2
 
@@ -79,9 +79,9 @@ CLUTTER_DOMAIN = DomainSpec(
 
 
 def clutter_problem(layout: Layout, source: dict, name: str, slots: int = SLOTS) -> Problem:
-    from interlayer_manip.world import PR2Geometry
+    from interlayer_manip.world import ManipulationGeometry
 
-    geometry = PR2Geometry(layout)
+    geometry = ManipulationGeometry(layout)
     names = [o.name for o in layout.objects]
     slot_names = [f"s{k + 1}" for k in range(slots)]
     objects = {o: "obj" for o in names}

@@ -5,7 +5,7 @@ PARAMS = {"objects": 15, "approach": "free"}
 
 
 def make_problem(params, seed):
-    from interlayer_manip.timing import timing
+    from interlayer_manip.params import timing
 
     from .scene import make_clutter_problem
 
@@ -16,7 +16,7 @@ def make_problem(params, seed):
 
 @hookimpl
 def interlayer_register_domains(registry):
-    from interlayer_manip.timing import TIMING
+    from interlayer_manip.params import TIMING
 
     registry.add("clutter", make_problem,
                  "the paper's cluttered table (Clutter-N): a PR2 must hold one of N cylinders, clearing those in the way",

@@ -9,7 +9,7 @@ import numpy as np
 from interlayer.refine import Candidate, EpochState
 from interlayer_manip.generators import _base_free
 from interlayer_manip.scene import REST_GAP, base_limits, table_top
-from interlayer_manip.world import ARMS, pose4, wrap
+from interlayer_manip.state import ARMS, pose4, wrap
 
 
 def base_near(geometry, x, y, rng, reach=(0.55, 0.95), heading=None):
@@ -99,7 +99,7 @@ class ClutterSampler(EpochState):
     def other_arm_blocked(self, problem, world, obj, arm):
         """(arm, base, approach, world to check it in or None) of the other arm's best grasp of obj when
         every one of its grasps has objects in the way; else None. The refinement learns that grasp's
-        blockers with this arm's (see PR2Geometry.approach_blocked). An other arm that holds an object
+        blockers with this arm's (see ManipulationGeometry.approach_blocked). An other arm that holds an object
         is asked as it will be once it has put that down: out of the way, the arm tucked."""
         other = next(a for a in ARMS if a != arm)
         free = _hand_emptied(world, other) if world.held.get(other) else world
@@ -317,7 +317,7 @@ def _with_hover(geometry, world, arm, T, wps, rng, obj):
     transit ends above the clutter and only the descent and the approach run between objects
     (obstructions learned from a failure then name the objects really in the way)."""
     from interlayer_manip.generators import _line
-    from interlayer_manip.world import PRE_GRASP, trans
+    from interlayer_manip.state import PRE_GRASP, trans
 
     approach, lift = wps
     pre_T = T @ trans(-PRE_GRASP, 0, 0)

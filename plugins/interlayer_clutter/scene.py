@@ -7,7 +7,7 @@ import numpy as np
 from interlayer.errors import UserError
 from interlayer.refine import stable_seed
 from interlayer_manip.scene import REST_GAP, Layout, ObjectSpec
-from interlayer_manip.world import ARMS
+from interlayer_manip.state import ARMS
 
 from .domain import clutter_problem
 from .samplers import ClutterSampler

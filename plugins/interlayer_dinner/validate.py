@@ -11,7 +11,7 @@ import numpy as np
 
 from interlayer_manip.scene import REST_GAP
 from interlayer_manip.validate import _inside, _pose_close, upright
-from interlayer_manip.world import is_open
+from interlayer_manip.state import is_open
 
 from .scene import TOP, TRAY
 from .stacking import stackable

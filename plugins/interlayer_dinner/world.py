@@ -21,7 +21,8 @@ from interlayer.motion import MotionQuery
 from interlayer.refine import Failure, StepOutcome
 from interlayer_pinocchio import TUCKED_ARMS
 from interlayer_manip.scene import REST_GAP, _radius
-from interlayer_manip.world import CARRY, PADDING, PR2Geometry, World, _failure, _holding, pose4, rz, trans
+from interlayer_manip.state import CARRY, PADDING, World, _failure, _holding, pose4, rz, trans
+from interlayer_manip.world import ManipulationGeometry
 
 from .scene import TOP, TRAY
 
@@ -53,7 +54,7 @@ def base_matrix(base) -> np.ndarray:
     return pose4(base[0], base[1], 0.0, base[2])
 
 
-class DinnerGeometry(PR2Geometry):
+class DinnerGeometry(ManipulationGeometry):
     def __init__(self, layout, padding: float = PADDING):
         super().__init__(layout, padding=padding)
         self.kinds = layout.extra["kinds"]

@@ -57,7 +57,7 @@ class Report:
 def top_grasps(P, yaws=(0.0, math.pi / 2, math.pi / 4, -math.pi / 4)):
     """Tool poses of top grasps of a cylinder at P (as interlayer_manip.generators.grasp_poses builds them)."""
     from interlayer_manip.generators import DOWN
-    from interlayer_manip.world import rz, trans
+    from interlayer_manip.state import rz, trans
 
     depth = min(0.03, INNER[1] / 2)
     x, y, z = P[:3, 3]
@@ -145,7 +145,7 @@ def check_property(geometry, want_witness=True) -> Report:
 def _witness(geometry, first, free, P):
     """(pull, base) on the grid from which the right or left arm reaches a top grasp and its pre-grasp."""
     from interlayer_manip.generators import _base_free
-    from interlayer_manip.world import ARMS, trans
+    from interlayer_manip.state import ARMS, trans
 
     rng = np.random.default_rng(0)
     world0 = geometry.initial_world()

@@ -19,7 +19,7 @@ import numpy as np
 
 from interlayer.refine import Candidate
 from interlayer_manip import generators as pr2
-from interlayer_manip.world import rz, trans
+from interlayer_manip.state import rz, trans
 
 from .check import exposed
 from .world import CABINET, DRAWER_LINK, HANDLE_GRIP, HANDLE_LINK
@@ -126,7 +126,7 @@ REACH_PULLS = (0.1, 0.2, 0.3, 0.4)
 def _reach_riders(geometry, world, base, path, rng) -> int:
     """At how many of REACH_PULLS (up to the pull the path reaches) some arm reaches a top grasp of
     every object riding in the drawer from ``base`` (IK, fixed obstacles)."""
-    from interlayer_manip.world import ARMS
+    from interlayer_manip.state import ARMS
 
     body = geometry.cabinet
     riders = [o for o, (b, _) in world.riders.items() if b == CABINET and o in world.objects]

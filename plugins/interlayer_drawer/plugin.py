@@ -7,7 +7,7 @@ PARAMS = {"variant": "O"}
 def make_problem(params, seed):
     from interlayer.domain import Problem
     from interlayer.errors import UserError
-    from interlayer_manip.world import ARMS
+    from interlayer_manip.state import ARMS
 
     from .domain import DOMAIN
     from .scene import make_layout

@@ -77,7 +77,7 @@ def inner_interior():
 def make_layout(seed: int, variant: str) -> Layout:
     """A seeded (O) or (N) scene; ``need`` / ``block`` (pull distances) go into ``layout.extra``."""
     from interlayer_pinocchio import ArticulatedBody
-    from interlayer_manip.world import PADDING, pose4
+    from interlayer_manip.state import PADDING, pose4
 
     from .check import first_exposed
 

@@ -6,7 +6,7 @@ Two functions with the geometry as first argument (the visualizer finds them as
     draw_scene(geometry, scene, world=None) -> {problem object: scene name}
     animation_frames(geometry, scene, trajectory) -> [{scene name: 4x4 pose, "@step": i}, ...]
 
-``world`` is a snapshot as written by ``PR2Geometry.snapshot`` (``World.to_json()``: base, arms,
+``world`` is a snapshot as written by ``ManipulationGeometry.snapshot`` (``World.to_json()``: base, arms,
 grippers, objects as 4x4 poses, held objects with their grasp) or ``None`` for the initial world;
 ``trajectory`` is trajectory.json (per segment a joint trajectory of the base (x, y, theta) or of one
 arm, gripper open / close, grasp and release events between). Everything is read defensively: only

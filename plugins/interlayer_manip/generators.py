@@ -20,7 +20,7 @@ import numpy as np
 from interlayer.refine import Candidate, Infeasible, stable_seed
 
 from .scene import REST_GAP, table_top
-from .world import LIFT, OPEN_CLEARANCE, PRE_GRASP, pose4, rz, trans, wrap
+from .state import LIFT, OPEN_CLEARANCE, PRE_GRASP, pose4, rz, trans, wrap
 
 LINE_STEP = 0.05  # m between IK waypoints of straight-line approaches
 GRASP_CLEARANCE = 0.001  # the gripper must open at least this much wider than the object

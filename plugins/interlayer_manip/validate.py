@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 
 from .scene import REST_GAP, table_top
-from .world import RES_ARM, RES_BASE, is_open
+from .state import RES_ARM, RES_BASE, is_open
 
 FINE_ARM, FINE_BASE = RES_ARM / 5, RES_BASE / 5
 POS_TOL, ROT_TOL = 2e-3, math.radians(2)

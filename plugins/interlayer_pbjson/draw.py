@@ -9,7 +9,7 @@ import numpy as np
 
 def draw_scene(geometry, scene, world=None) -> dict:
     from interlayer_manip import draw
-    from interlayer_manip.world import pose4
+    from interlayer_manip.state import pose4
 
     names = draw.draw_scene(geometry, scene, world)
     extra = geometry.layout.extra

@@ -20,7 +20,7 @@ import numpy as np
 from interlayer.refine import Candidate
 from interlayer_clutter.samplers import ClutterSampler, fmt, in_corridors, putdown_motion
 from interlayer_manip.scene import REST_GAP, _radius
-from interlayer_manip.world import pose4, wrap
+from interlayer_manip.state import pose4, wrap
 
 from .scene import inside, polygon_of
 

@@ -19,7 +19,8 @@ from interlayer.errors import UserError
 from interlayer.refine import StepOutcome
 from interlayer_manip.scene import REST_GAP
 from interlayer_manip.validate import upright
-from interlayer_manip.world import ARMS, PADDING, PR2Geometry, _failure, _holding, pose4, wrap
+from interlayer_manip.state import ARMS, PADDING, _failure, _holding, pose4, wrap
+from interlayer_manip.world import ManipulationGeometry
 
 from .scene import ON_TOL, inside, top_name
 
@@ -27,7 +28,7 @@ HOME_TOL = 1e-3  # m / rad: the robot is back at its start configuration
 GOAL_POS_TOL, GOAL_YAW_TOL = 0.01, math.radians(5)  # an object is at its goal pose
 
 
-class PBGeometry(PR2Geometry):
+class PBGeometry(ManipulationGeometry):
     def __init__(self, layout, padding: float = PADDING):
         super().__init__(layout, padding=padding)
         self.surfaces = layout.extra["surfaces"]

@@ -1,6 +1,6 @@
 """Registers the PR2 pick-and-place domain and its pose generators."""
 from interlayer import hookimpl
-from interlayer_manip.timing import TIMING, timing
+from interlayer_manip.params import TIMING, timing
 
 PARAMS = {"goal": "hold", "grasps": ["side"], "target_radius": 0.035, "clutter": 0, **TIMING}
 
@@ -14,10 +14,11 @@ def make_problem(params, seed):
 def _make_problem(params, seed):
     from interlayer.domain import Problem
     from interlayer.errors import UserError
-    from interlayer_manip.scene import make_layout
-    from interlayer_manip.world import ARMS, PR2Geometry
+    from interlayer_manip.state import ARMS
+    from interlayer_manip.world import ManipulationGeometry
 
     from .domain import DOMAIN
+    from .scene import make_layout
 
     goal = params["goal"]
     if goal not in ("hold", "place", "tidy"):
@@ -35,7 +36,7 @@ def _make_problem(params, seed):
         layout = make_layout(seed, goal, grasps, float(r), n)
     except ValueError as exc:
         raise UserError(f"problem.clutter={n}: {exc}; use fewer.") from None
-    geometry = PR2Geometry(layout)
+    geometry = ManipulationGeometry(layout)
     objects = {o.name: "obj" for o in layout.objects}
     objects.update({a: "arm" for a in ARMS})
     objects.update({loc: "loc" for loc in layout.regions})
