@@ -21,11 +21,13 @@ from interlayer.motion import BLOCK as FINE_BLOCK
 from interlayer.motion import Clearance, ConfigSpace, InterpolatingPlanner, MotionQuery, points_valid
 from interlayer.refine import ROBOT_MOVED, Failure, StepOutcome
 from interlayer.trace import Stats
+from interlayer_pinocchio.description import describe  # a TOML read: no Pinocchio
 
 from .plugin import TIMING  # defaults, overridden by the problem keys of the same names (layout.extra)
 from .scene import Layout, base_limits
 
-ARMS = ("left", "right")
+# The PR2's arm names, for building domains before a robot exists (the geometry reads self.robot.arms).
+ARMS = tuple(a.name for a in describe("pr2").arms)
 RES_ARM = 0.02  # rad between collision checks when planning an arm (the validator checks 5x finer)
 # Planning keeps this far from fixed obstacles (their boxes are padded), so that contacts missed
 # between two checks at RES_ARM (the fingertips move up to ~1.6 cm per 0.02 rad) are not real ones;
@@ -39,10 +41,6 @@ PRE_GRASP = 0.20  # back-off of the pre-grasp along the tool x axis (approach an
 LIFT = 0.05  # raise after grasping / height above the put-down spot
 OPEN_CLEARANCE = 0.01  # m: a gripper about to grasp or let go opens this much wider than the object (5 mm a side)
 FOLLOWS = 1e3  # the velocity / acceleration "limit" of a joint driven by the hand (a drawer's slide)
-# First IK seed for reaching forward at table height (elbow up, measured typical solutions)
-REACH_SEED = {"left": (-0.4, -0.25, 3.3, -1.53, 2.75, -1.2, 0.0), "right": (0.4, -0.25, -3.3, -1.53, -2.75, -1.2, 0.0)}
-# Carry postures (tool position in the base frame, yaw away from the body): tried in order.
-CARRY = ((0.35, 0.45, 1.15, 0.3), (0.30, 0.50, 1.10, 0.5), (0.40, 0.40, 1.20, 0.1), (0.25, 0.55, 1.20, 0.7))
 
 
 def rz(a: float) -> np.ndarray:
@@ -104,11 +102,11 @@ class PR2Geometry:
     """Refinement runtime of the pr2 domain."""
 
     def __init__(self, layout: Layout, padding: float = PADDING):
-        from interlayer_pinocchio import PR2, CollisionWorld
+        from interlayer_pinocchio import CollisionWorld, Robot
 
         self.layout = layout
         self.padding = padding
-        self.robot = PR2(torso_height=layout.extra.get("torso_height", 0.2), base_limits=base_limits(layout))
+        self.robot = Robot.load("pr2", torso_height=layout.extra.get("torso_height", 0.2), base_limits=base_limits(layout))
         self.cw = CollisionWorld(self.robot)
         for o in layout.fixed + layout.objects:
             T = pose4(*o.pose)
@@ -137,7 +135,7 @@ class PR2Geometry:
         # interpolates linearly), the core's densify (validator, straight lines) and a controller
         # reading trajectory.json (linear in joint values).
         self.arm_space = {}
-        for arm in ARMS:
+        for arm in self.robot.arms:
             g = self.robot.group(f"{arm}_arm")
             self.arm_space[arm] = ConfigSpace("vector", tuple(g.lower), tuple(g.upper), (False,) * g.dof, RES_ARM)
 
@@ -150,9 +148,8 @@ class PR2Geometry:
 
     # -- world ----------------------------------------------------------------------------------
     def initial_world(self) -> World:
-        from interlayer_pinocchio import TUCKED_ARMS
-
-        return World(tuple(self.layout.base), {a: tuple(TUCKED_ARMS[a]) for a in ARMS}, {a: "closed" for a in ARMS},
+        arms = self.robot.arms
+        return World(tuple(self.layout.base), {a: tuple(self.robot.home(a)) for a in arms}, {a: "closed" for a in arms},
                      {o.name: pose4(*o.pose) for o in self.layout.objects}, {},
                      joints=dict(self._initial_joints), riders=dict(self._initial_riders))
 
@@ -371,7 +368,7 @@ class PR2Geometry:
         fixed obstacles (and movables if asked), or None."""
         from interlayer_pinocchio import solve_ik
 
-        w = world.with_arm(arm, REACH_SEED[arm] if seed is None else seed)
+        w = world.with_arm(arm, self.robot.reach_seed(arm) if seed is None else seed)
         if gripper:
             w = w.with_gripper(arm, gripper)
         with self.stats.timer("ik"):  # the sync (the seed configuration) is the solver's set-up
@@ -695,13 +692,12 @@ class PR2Geometry:
         return StepOutcome(True, w.with_arm(arm, carry), segs)
 
     def carry(self, world, arm, rng):
-        sg = 1.0 if arm == "left" else -1.0
         B = self.robot.base_pose(self.config(world))
         G = world.held[arm][1]
         top = abs((G[:3, :3].T @ np.array([1.0, 0, 0]))[2]) > 0.7  # tool x along the object's axis: a top grasp
-        for x, y, z, a in CARRY:
-            R = rz(sg * a) if not top else rz(sg * a) @ np.array([[0, 0, 1, 0], [0, 1, 0, 0], [-1, 0, 0, 0], [0, 0, 0, 1.0]])
-            T = B @ trans(x, sg * y, z) @ R
+        for x, y, z, a in self.robot.carry_poses(arm):
+            R = rz(a) if not top else rz(a) @ np.array([[0, 0, 1, 0], [0, 1, 0, 0], [-1, 0, 0, 0], [0, 0, 0, 1.0]])
+            T = B @ trans(x, y, z) @ R
             sol = self.ik(world, arm, T, rng, movables=True, attempts=10)
             if sol is not None:
                 return sol
@@ -742,16 +738,14 @@ class PR2Geometry:
     def retreat_and_tuck(self, motion, w, arm, group, retreat, what, segs, acc):
         """The open hand's straight retreat along ``retreat``, the gripper closed, the arm tucked: the
         end of every step that lets go of something (``what`` names it in failures)."""
-        from interlayer_pinocchio import TUCKED_ARMS
-
         w, failed = self.retreat(w, arm, retreat, f"{what} retreat", segs, acc)
         if failed:
             return failed
-        res = self._plan(motion, self.arm_query(w, arm, retreat[-1], TUCKED_ARMS[arm], f"{what} tuck", acc), "transit",
+        res = self._plan(motion, self.arm_query(w, arm, retreat[-1], self.robot.home(arm), f"{what} tuck", acc), "transit",
                          group, segs, _holding(w), w, acc)
         if not res.ok:
             return _failure(res, f"{what} tuck")
-        return StepOutcome(True, w.with_arm(arm, TUCKED_ARMS[arm]), segs)
+        return StepOutcome(True, w.with_arm(arm, self.robot.home(arm)), segs)
 
     # -- articulated bodies ------------------------------------------------------------------------
     def pull_states(self, world, arm, body, path, fine=1):
