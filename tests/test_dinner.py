@@ -227,12 +227,10 @@ def handoff_run(host):
 
 
 def test_handoff_passes_the_object_to_the_other_hand_and_validates(handoff_run):
-    from interlayer_pinocchio import TUCKED_ARMS
-
     geometry, cup, plan, outcomes, trajectory = handoff_run
     after = outcomes[1].world
     assert after.holder(cup) == "left" and "right" not in after.held and cup not in after.objects
-    assert np.allclose(after.arms["right"], TUCKED_ARMS["right"]) and after.grippers["right"] == "closed"
+    assert np.allclose(after.arms["right"], geometry.robot.home("right")) and after.grippers["right"] == "closed"
     kinds = [s["kind"] for s in trajectory["steps"][1]["segments"]]
     assert "handover" in kinds and kinds.index("handover") < len(kinds) - 1
     assert _check(geometry, plan, trajectory) == []

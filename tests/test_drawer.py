@@ -20,7 +20,7 @@ def cabinet():
 
 def test_prismatic_joint_moves_the_handle_and_the_drawer_geometry(cabinet):
     from interlayer_drawer.scene import FRONT
-    from interlayer_pinocchio import PR2, CollisionWorld
+    from interlayer_pinocchio import CollisionWorld, Robot
 
     assert cabinet.joint_names == ("drawer_joint",)
     assert cabinet.lower.tolist() == [0.0] and cabinet.upper.tolist() == [0.4]
@@ -37,7 +37,7 @@ def test_prismatic_joint_moves_the_handle_and_the_drawer_geometry(cabinet):
 
     # the Coal geometry in a collision world follows the joint: a box 0.2 m in front of the drawer's
     # front plate is touched once the drawer is pulled that far, not before
-    cw = CollisionWorld(PR2())
+    cw = CollisionWorld(Robot.load("pr2"))
     cabinet.add_to(cw, [0.0])
     cw.add_box("box", (0.05, 0.05, 0.05), _at(FRONT - 0.02 - 0.2 - 0.03, 0.1, 0.64), movable=True)
     assert cabinet.touching(cw, [0.15], ["box"]) == set()

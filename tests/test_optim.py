@@ -53,9 +53,9 @@ def _arm_segment(traj):
 def _slow_arm_segment(traj):
     """The first arm segment that stays below half its joints' velocity limits: twice as fast, only
     its accelerations break a limit."""
-    from interlayer_pinocchio import PR2
+    from interlayer_pinocchio import Robot
 
-    robot = PR2()
+    robot = Robot.load("pr2")
     for step in traj["steps"]:
         for s in step["segments"]:
             if s.get("group", "").endswith("arm"):

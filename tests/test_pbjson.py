@@ -485,12 +485,11 @@ def test_a_put_down_base_must_leave_room_to_tuck_the_arm():
     raised, but the tucked left elbow (how every put-down ends) hits kitchen_table."""
     from dataclasses import replace
 
-    from interlayer_pinocchio import TUCKED_ARMS
     from interlayer_manip.generators import _base_free
 
     g = api.prepare(str(SHARED / "kitchen.json")).problem.geometry
     base = (0.17, 1.18, 0.86)
-    w = replace(g.initial_world(), arms={a: tuple(TUCKED_ARMS[a]) for a in TUCKED_ARMS}, base=base)
+    w = replace(g.initial_world(), arms={a: tuple(g.robot.home(a)) for a in g.robot.arms}, base=base)
     assert not _base_free(g, w, base)  # tucked, the left elbow is in the table
     rng = np.random.default_rng(0)
     raised = next(w2 for w2 in (w.with_arm("left", g.robot.group("left_arm").sample(rng)) for _ in range(100))

@@ -1,23 +1,27 @@
-"""interlayer_pinocchio -- a PR2 robot world on Pinocchio + Coal: kinematics, collisions, IK.
+"""interlayer_pinocchio -- the robot layer on Pinocchio + Coal: any robot from a description; kinematics, collisions, IK.
 
 Generic robot-world code (no task-planning knowledge).  Importing this package is
 cheap: Pinocchio and Coal load on first use of a name below.
 
-Coordinates: ``q`` is Pinocchio's configuration (nq = 38; planar base and
-continuous joints stored as cos/sin); a "vector" has one float per DOF (angles
-in rad).  Poses are 4x4 numpy arrays in metres.  Arms are ``"left"``/``"right"``.
+Coordinates: ``q`` is Pinocchio's configuration (planar base and continuous
+joints stored as cos/sin); a "vector" has one float per DOF (angles in rad).
+Poses are 4x4 numpy arrays in metres.  Arms are named by the description.
 
-``PR2(torso_height=0.2, base_limits=((-5, 5), (-5, 5)))``   (robot.py)
-    groups: ``base`` (x, y, theta), ``left_arm``/``right_arm`` (7 joints
-    shoulder_pan..wrist_roll), ``left_gripper``/``right_gripper`` (finger angle).
-    ``group(name) -> JointGroup`` (dof_names, lower, upper, circular, get, set, write,
+``Robot.load(name_or_path="pr2", torso_height=None, base_limits=((-5, 5), (-5, 5)), hold=None)``   (robot.py)
+    a robot from its description (description.py; shipped: robots/*.toml, ``shipped_robots()``); every robot
+    has a planar root. ``arms`` (names), ``mobile``, ``description``, ``home(arm)``, ``reach_seed(arm)``,
+    ``carry_poses(arm)``, ``torso_height`` (None without a torso), ``self_collision_source``;
+    groups: ``base`` (x, y, theta), ``{arm}_arm`` (the arm's joints), ``{arm}_gripper`` (one DOF driving the
+    finger joints). ``group(name) -> JointGroup`` (dof_names, lower, upper, circular, get, set, write,
     sample, wrap, within_bounds); ``get(q, group)``, ``set(q, group, values) -> q``;
     ``q_to_vector(q)``, ``vector_to_q(v)``, ``vector_names``;
-    ``neutral_q()``, ``default_q(base=(x, y, th))`` (arms tucked), ``random_q(rng, q, groups)``;
-    ``tool_frame(arm)``, ``tool_pose(q, arm)``, ``frame_pose(q, frame)``, ``base_pose(q)``;
-    ``max_gripper_opening`` (m, measured: ~0.092), ``gripper_opening(q, arm)``,
-    ``set_gripper_opening(q, arm, width)``, ``open_gripper(q, arm)``, ``close_gripper(q, arm)``;
-    ``gripper_links(arm)``, ``collision_links(group)``, ``moving_joints(group)``;
+    ``neutral_q()``, ``default_q(base=(x, y, th))`` (arms at home), ``random_q(rng, q, groups)``;
+    ``tool_frame(arm)`` (the description's), ``tool_frame_id(arm)``, ``tool_pose(q, arm)`` and
+    ``tool_jacobian(q, arm)`` (canonical tool frame: x = approach, y = closing), ``frame_pose(q, frame)``,
+    ``base_pose(q)``, ``velocity_limits(group)``, ``acceleration_limits(group)``;
+    ``gripper_range(arm) -> (closed, widest)`` (m, measured), ``max_gripper_opening`` (smallest widest),
+    ``gripper_opening(q, arm)``, ``set_gripper_opening(q, arm, width)``, ``open_gripper(q, arm)``,
+    ``close_gripper(q, arm)``; ``gripper_links(arm)``, ``collision_links(group)``, ``moving_joints(group)``;
     ``visual_model() -> (GeometryModel, package_dirs)``; ``model``, ``collision_model``.
 
 ``CollisionWorld(robot)``   (world.py)
@@ -39,20 +43,22 @@ in rad).  Poses are 4x4 numpy arrays in metres.  Arms are ``"left"``/``"right"``
     ``box_link_urdf(name, [(size, xyz), ...])`` writes a URDF link of boxes.
 
 ``solve_ik(robot, arm, target, q_start, rng=None, world=None, attempts=20, tol_pos=1e-3,
-tol_rot=radians(1), ignore=(), movables=True) -> 7-vector | None``   (ik.py)
+tol_rot=radians(1), ignore=(), movables=True) -> arm vector | None``   (ik.py)
 
 Touching counts as colliding (Coal semantics): rest objects ~1 mm above their support.
-Nothing here is thread-safe: give each thread its own PR2 and CollisionWorld.
+Nothing here is thread-safe: give each thread its own Robot and CollisionWorld.
 """
 
 from __future__ import annotations
 
 import importlib
 
-__all__ = ["PR2", "JointGroup", "TUCKED_ARMS", "CollisionWorld", "WorldObject", "Attachment", "solve_ik", "ArticulatedBody", "box_link_urdf"]
+__all__ = ["Robot", "JointGroup", "CollisionWorld", "WorldObject", "Attachment", "solve_ik", "ArticulatedBody",
+           "box_link_urdf", "describe", "shipped_robots", "RobotDescription"]
 
 _WHERE = {
-    "PR2": "robot", "JointGroup": "robot", "TUCKED_ARMS": "robot",
+    "Robot": "robot", "JointGroup": "robot",
+    "describe": "description", "shipped_robots": "description", "RobotDescription": "description",
     "CollisionWorld": "world", "WorldObject": "world", "Attachment": "world",
     "solve_ik": "ik",
     "ArticulatedBody": "articulated", "box_link_urdf": "articulated",

@@ -1,9 +1,10 @@
-"""Inverse kinematics of a PR2 arm's tool frame: damped least squares (CLIK) with restarts.
+"""Inverse kinematics of an arm's (canonical) tool frame: damped least squares (CLIK) with restarts.
 
-Each arm is solved on a 7-joint reduced Pinocchio model (everything else
+Each arm is solved on a reduced Pinocchio model of its joints (everything else
 locked), so an iteration costs one small FK + Jacobian.  The target is moved
-into that model's frame through ``torso_lift_link``, which makes the result
-correct for any base pose and torso height in ``q_start``.
+into that model's frame through the chain's root link (the link the arm's first
+joint hangs from, e.g. the PR2's torso), which makes the result correct for any
+base pose and held joint values (torso height) in ``q_start``.
 """
 
 from __future__ import annotations
@@ -15,7 +16,8 @@ import numpy as np
 import pinocchio as pin
 from interlayer import deadline as deadlines
 
-from .robot import PR2, as_se3, joint_group
+from .gripper import parent_link
+from .robot import Robot, as_se3, joint_group
 
 __all__ = ["solve_ik", "arm_ik", "ArmIK"]
 
@@ -23,7 +25,7 @@ __all__ = ["solve_ik", "arm_ik", "ArmIK"]
 class ArmIK:
     """Reduced model + solver state for one arm (built once per robot and arm, see :func:`arm_ik`)."""
 
-    def __init__(self, robot: PR2, arm: str):
+    def __init__(self, robot: Robot, arm: str):
         full = robot.model
         self.group_name = f"{arm}_arm"
         arm_group = robot.group(self.group_name)
@@ -32,11 +34,11 @@ class ArmIK:
         self.model = pin.buildReducedModel(full, locked, robot.neutral_q())
         self.data = self.model.createData()
         self.group = joint_group(self.model, self.group_name, [full.names[j] for j in arm_group.joint_ids])
-        self.tool = self.model.getFrameId(robot.tool_frame(arm))
-        self._torso_full = full.getFrameId("torso_lift_link")
-        torso = self.model.getFrameId("torso_lift_link")
+        self.tool = self.model.getFrameId(full.frames[robot.tool_frame_id(arm)].name)
+        first = full.getFrameId(full.names[arm_group.joint_ids[0]], pin.FrameType.JOINT)
+        self.root_frame = full.frames[parent_link(full, first)].name  # the link the chain hangs from
         pin.framesForwardKinematics(self.model, self.data, pin.neutral(self.model))
-        self.torso_pose = self.data.oMf[torso].copy()  # constant: torso locked
+        self.root_pose = self.data.oMf[self.model.getFrameId(self.root_frame)].copy()  # constant: it is locked
         # Upper bound on |shoulder-pan origin -> tool frame|: sum of the chain's link offsets.
         self.shoulder = self.data.oMi[1].translation.copy()
         self.reach = sum(np.linalg.norm(self.model.jointPlacements[j].translation)
@@ -45,10 +47,10 @@ class ArmIK:
         self._linear = ~np.asarray(self.group.circular)
         self._q = pin.neutral(self.model)
 
-    def target_in_model(self, robot: PR2, q_start, target) -> pin.SE3:
-        """World target -> reduced-model frame, via the torso link pose at ``q_start``."""
-        torso_world = as_se3(robot.frame_pose(q_start, "torso_lift_link"))
-        return self.torso_pose * torso_world.actInv(as_se3(target))
+    def target_in_model(self, robot: Robot, q_start, target) -> pin.SE3:
+        """World target -> reduced-model frame, via the chain's root link pose at ``q_start``."""
+        root_world = as_se3(robot.frame_pose(q_start, self.root_frame))
+        return self.root_pose * root_world.actInv(as_se3(target))
 
     def clik(self, target: pin.SE3, seed: np.ndarray, tol_pos: float, tol_rot: float,
              max_iters: int = 60, damping: float = 1e-6, max_step: float = 0.5) -> np.ndarray | None:
@@ -78,7 +80,7 @@ class ArmIK:
         return None
 
 
-def arm_ik(robot: PR2, arm: str) -> ArmIK:
+def arm_ik(robot: Robot, arm: str) -> ArmIK:
     """Cached :class:`ArmIK` for ``robot`` and ``arm``."""
     cache = robot.__dict__.setdefault("_arm_ik", {})
     if arm not in cache:
@@ -86,11 +88,11 @@ def arm_ik(robot: PR2, arm: str) -> ArmIK:
     return cache[arm]
 
 
-def solve_ik(robot: PR2, arm: str, target, q_start, rng: np.random.Generator | None = None,
+def solve_ik(robot: Robot, arm: str, target, q_start, rng: np.random.Generator | None = None,
              world=None, attempts: int = 20, tol_pos: float = 1e-3, tol_rot: float = math.radians(1.0),
              ignore: Iterable[str] = frozenset(), movables: bool = True,
              max_iters: int = 60) -> np.ndarray | None:
-    """7 joint values putting ``arm``'s tool frame at ``target`` (4x4 world pose), or None.
+    """Arm joint values putting ``arm``'s tool frame at ``target`` (4x4 world pose), or None.
 
     Tries the arm configuration of ``q_start`` first, then ``attempts - 1`` random
     seeds.  Solutions are within joint limits (continuous joints wrapped to

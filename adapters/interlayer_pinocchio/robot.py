@@ -1,57 +1,27 @@
-"""PR2 kinematics on Pinocchio: joint groups, vector <-> q conversion, tool frames, gripper.
+"""Any robot's kinematics on Pinocchio, built from its description: joint groups, vector <-> q, tool frames, gripper.
 
 Two coordinate systems are used on purpose:
 
-* ``q`` -- Pinocchio's configuration (``model.nq`` = 38 floats).  The planar
+* ``q`` -- Pinocchio's configuration (``model.nq`` floats, 38 for the PR2).  The planar
   root joint is stored as ``(x, y, cos th, sin th)`` and the continuous forearm
   and wrist roll joints as ``(cos a, sin a)``.  Collision checks and forward
   kinematics take ``q``.
-* "vector" -- one float per degree of freedom (``model.nv`` = 33 floats), angles
+* "vector" -- one float per degree of freedom (``model.nv`` floats, 33 for the PR2), angles
   in radians for continuous joints, ordered like Pinocchio's velocity vector.
   Planners and samplers work in vectors (per group: see :class:`JointGroup`).
 """
 
 from __future__ import annotations
 
-import importlib.metadata
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 import pinocchio as pin
 
-__all__ = ["ARMS", "TUCKED_ARMS", "JointGroup", "PR2", "joint_group", "pr2_resources", "as_matrix", "as_se3"]
-
-ARMS = ("left", "right")
-_SIDE = {"left": "l", "right": "r"}
-ARM_JOINT_SUFFIXES = (
-    "shoulder_pan", "shoulder_lift", "upper_arm_roll", "elbow_flex",
-    "forearm_roll", "wrist_flex", "wrist_roll",
-)
-# Joints that open the gripper together (URDF mimics of ``*_gripper_l_finger_joint``).
-_GRIPPER_MIMICS = (
-    "l_finger", "r_finger", "l_finger_tip", "r_finger_tip", "l_parallel_root", "r_parallel_root",
-)
-
-# SRDF group states ``tuck_left_arm`` / ``tuck_right_arm`` (pr2.srdf).  With both
-# arms tucked the forearm meshes interpenetrate, so the right shoulder lift is
-# lowered by 0.15 rad (1.10728 -> 0.95728): >= 1 cm self-clearance at every
-# torso height, everything stays within 4 cm of the base footprint.
-TUCKED_ARMS = {
-    "left": (0.06024, 1.24853, 1.78907, -1.68339, -1.73434, -0.0962141, -0.0864407),
-    "right": (-0.023593, 0.95728, -1.55669, -2.12441, -1.4175, -1.8417, 0.21436),
-}
-
-
-def pr2_resources() -> tuple[Path, Path, tuple[str, ...]]:
-    """(urdf, srdf, package_dirs) shipped by the example-robot-data wheel; never hard-coded."""
-    dist = importlib.metadata.distribution("example-robot-data")
-    share = Path(dist.locate_file("cmeel.prefix/share"))
-    robot_dir = share / "example-robot-data" / "robots" / "pr2_description"
-    return robot_dir / "urdf" / "pr2.urdf", robot_dir / "srdf" / "pr2.srdf", (str(share),)
+__all__ = ["JointGroup", "Robot", "joint_group", "as_matrix", "as_se3"]
 
 
 def as_matrix(pose) -> np.ndarray:
@@ -195,50 +165,104 @@ def joint_group(model: pin.Model, name: str, joints: Sequence[str],
                       tuple(ids), tuple(linear), tuple(angular))
 
 
-class PR2:
-    """The PR2 of example-robot-data with a planar base and a torso held at a fixed height.
+class Robot:
+    """A robot built from its description (see :mod:`.description`): every robot gets a planar root
+    joint (its root link stands at the base pose ``(x, y, theta)``; ``mobile`` says whether it may drive).
 
-    Groups: ``base`` (x, y, theta), ``left_arm`` / ``right_arm`` (7 joints,
-    shoulder_pan ... wrist_roll), ``left_gripper`` / ``right_gripper`` (1 DOF:
-    the finger joint angle in rad, applied to all six mimic joints).  The torso,
-    head and laser tilt are in no group: they keep their ``q`` values, and every
-    helper here writes the configured torso height into fresh configurations.
+    Groups: ``base`` (x, y, theta), ``{arm}_arm`` (the arm's joints) and ``{arm}_gripper`` (one DOF driving
+    the finger joints with their multipliers) per arm, ``arm`` being a name of :attr:`arms`.  Joints in
+    no group keep their ``q`` values: every helper here writes the held values into fresh configurations.
+    Tool poses are those of a canonical frame per arm, fixed to the description's tool frame and rotated
+    so that its x axis is the approach axis (out of the hand) and its y axis the closing axis.
 
     Not thread-safe: it owns one ``pin.Data`` used by the FK helpers.
     """
 
-    def __init__(self, torso_height: float = 0.2,
-                 base_limits: tuple[tuple[float, float], tuple[float, float]] = ((-5.0, 5.0), (-5.0, 5.0))):
-        urdf, srdf, package_dirs = pr2_resources()
-        self.urdf_path, self.srdf_path, self.package_dirs = urdf, srdf, package_dirs
-        self.model, self.collision_model = pin.buildModelsFromUrdf(
-            str(urdf), package_dirs=list(package_dirs), root_joint=pin.JointModelPlanar(),
-            geometry_types=[pin.GeometryType.COLLISION])
-        self.data = self.model.createData()
-        self.collision_model.addAllCollisionPairs()
-        pin.removeCollisionPairs(self.model, self.collision_model, str(srdf))
-        for obj in self.collision_model.geometryObjects:
-            obj.geometry.computeLocalAABB()  # broadphase ignores geometries with an empty AABB
+    @classmethod
+    def load(cls, name_or_path="pr2", **overrides) -> "Robot":
+        """A shipped robot by name (``"pr2"``) or the description at a path; ``overrides``: see ``__init__``."""
+        from .description import describe
 
-        torso = self.model.joints[self.model.getJointId("torso_lift_joint")]
-        lo, hi = self.model.lowerPositionLimit[torso.idx_q], self.model.upperPositionLimit[torso.idx_q]
-        if not lo <= torso_height <= hi:
-            raise ValueError(f"torso_height {torso_height} outside [{lo}, {hi}]")
-        self.torso_height = float(torso_height)
-        self._torso_q = torso.idx_q
+        return cls(describe(name_or_path), **overrides)
+
+    def __init__(self, description, torso_height: float | None = None,
+                 base_limits: tuple[tuple[float, float], tuple[float, float]] = ((-5.0, 5.0), (-5.0, 5.0)),
+                 hold: dict[str, float] | None = None):
+        """``torso_height`` overrides the held value of the description's torso joint, ``hold`` those of
+        any held joints; ``base_limits`` bound the base's x and y (m)."""
+        from interlayer.errors import UserError
+
+        from .description import check_names
+        from .selfcollision import skip_pairs
+
+        desc = self.description = description
+        self.urdf_path, self.srdf_path, self.package_dirs = desc.urdf, desc.srdf, desc.package_dirs
+        self.model, self.collision_model = pin.buildModelsFromUrdf(
+            str(desc.urdf), package_dirs=list(desc.package_dirs), root_joint=pin.JointModelPlanar(),
+            geometry_types=[pin.GeometryType.COLLISION])
+        check_names(desc, self.model, self.collision_model)
+        self.arms = tuple(a.name for a in desc.arms)
+        self.mobile = desc.mobile
+        self._arm = {a.name: a for a in desc.arms}
+        self._tool_frames = {a.name: self._add_tool_frame(i, a) for i, a in enumerate(desc.arms)}
+        self.data = self.model.createData()
+
+        held = dict(desc.hold)
+        held.update(hold or {})
+        if torso_height is not None:
+            if desc.torso is None:
+                raise UserError(f"{desc.where('robot.torso')}: the {desc.name} has no torso to set the height of")
+            held[desc.torso] = torso_height
+        self._held = []  # (q index, value) written into every fresh configuration
+        for jname, value in held.items():
+            jid = self.model.getJointId(jname)
+            if jid >= self.model.njoints or self.model.joints[jid].nq != 1:
+                raise UserError(f"{desc.where(f'hold.{jname}')}: no single-valued joint {jname!r} in the URDF")
+            qi = self.model.joints[jid].idx_q
+            lo, hi = self.model.lowerPositionLimit[qi], self.model.upperPositionLimit[qi]
+            if not lo <= value <= hi:
+                field = "torso_height" if jname == desc.torso else f"hold.{jname}"
+                raise UserError(f"{desc.where(field)}: {value} is outside {jname}'s range [{lo}, {hi}]")
+            self._held.append((qi, float(value)))
+        self.torso_height = None if desc.torso is None else float(held[desc.torso])
         self.base_limits = (tuple(map(float, base_limits[0])), tuple(map(float, base_limits[1])))
 
         self.groups: dict[str, JointGroup] = {
             "base": joint_group(self.model, "base", ["root_joint"], self.base_limits)}
-        for arm in ARMS:
-            s = _SIDE[arm]
-            self.groups[f"{arm}_arm"] = joint_group(
-                self.model, f"{arm}_arm", [f"{s}_{j}_joint" for j in ARM_JOINT_SUFFIXES])
-            self.groups[f"{arm}_gripper"] = self._gripper_group(arm)
+        for k, a in enumerate(desc.arms):
+            g = self.groups[f"{a.name}_arm"] = joint_group(self.model, f"{a.name}_arm", list(a.joints))
+            self.groups[f"{a.name}_gripper"] = self._gripper_group(a)
+            for field, values in (("home", a.home), ("reach_seed", a.reach_seed or a.home)):
+                for i, (v, lo, hi, circ) in enumerate(zip(values, g.lower, g.upper, g.circular)):
+                    if not circ and not lo - 1e-9 <= v <= hi + 1e-9:
+                        raise UserError(f"{desc.where(f'arms[{k}].{field}[{i}]')}: {v} is outside {a.joints[i]}'s "
+                                        f"range [{lo:.4g}, {hi:.4g}]")
         every_joint = [self.model.names[j] for j in range(1, self.model.njoints)]
         self._all = joint_group(self.model, "all", every_joint, self.base_limits)
-        self._tool_frames = {arm: self.model.getFrameId(f"{_SIDE[arm]}_gripper_tool_frame") for arm in ARMS}
+        self._neutral = pin.neutral(self.model)
+        for j in range(2, self.model.njoints):  # joints in no group rest at 0, or mid-range when 0 is outside
+            joint = self.model.joints[j]
+            if joint.nq == 1:
+                lo, hi = self.model.lowerPositionLimit[joint.idx_q], self.model.upperPositionLimit[joint.idx_q]
+                if not lo <= 0.0 <= hi:
+                    self._neutral[joint.idx_q] = 0.5 * (lo + hi)
+        for qi, value in self._held:
+            self._neutral[qi] = value
         self._visual = None
+        self.collision_model.addAllCollisionPairs()
+        self.self_collision_source = skip_pairs(self)  # removes the pairs never checked
+        for obj in self.collision_model.geometryObjects:
+            obj.geometry.computeLocalAABB()  # broadphase ignores geometries with an empty AABB
+
+    def _add_tool_frame(self, index: int, arm) -> int:
+        """The canonical tool frame of ``arm``: x = approach axis, y = closing axis (the PR2's: identity)."""
+        model = self.model
+        fid = model.getFrameId(arm.tool_frame)
+        x, y = np.array(arm.approach), np.array(arm.closing)
+        rot = np.column_stack([x, y, np.cross(x, y)])
+        frame = model.frames[fid]
+        return model.addFrame(pin.Frame(f"interlayer_tool_{index}", frame.parentJoint, fid,
+                                        frame.placement * pin.SE3(rot, np.zeros(3)), pin.FrameType.OP_FRAME))
 
     # -- groups -----------------------------------------------------------------------------
     def moving_joints(self, group: str) -> frozenset[int]:
@@ -249,19 +273,25 @@ class PR2:
                 moving.add(j)
         return frozenset(moving)
 
-    def _gripper_group(self, arm: str) -> JointGroup:
-        """One DOF (finger angle) driving the six mimic joints.
+    def _gripper_group(self, arm) -> JointGroup:
+        """One DOF driving the finger joints, each at its multiplier times the DOF; the DOF's range keeps
+        every finger joint within its limits."""
+        ids, linear, lo, hi = [], [], -np.inf, np.inf
+        for jname, mult in arm.gripper.joints:
+            jid = self.model.getJointId(jname)
+            joint = self.model.joints[jid]
+            if joint.nq != 1:
+                from interlayer.errors import UserError
 
-        The URDF gives ``*_r_parallel_root_joint`` multiplier -1, which would leave its
-        [0, 0.548] limit; that link has no geometry, so it simply gets +angle like the others.
-        """
-        s = _SIDE[arm]
-        names = [f"{s}_gripper_{j}_joint" for j in _GRIPPER_MIMICS]
-        ids = [self.model.getJointId(n) for n in names]
-        qidx = [self.model.joints[j].idx_q for j in ids]
-        lo, hi = self.model.lowerPositionLimit[qidx[0]], self.model.upperPositionLimit[qidx[0]]
-        return JointGroup(f"{arm}_gripper", (names[0],), _frozen([lo]), _frozen([hi]), (False,),
-                          tuple(ids), tuple((qi, 0, 1.0) for qi in qidx), ())
+                raise UserError(f"{self.description.where(f'arms.gripper.joints.{jname}')}: {jname!r} is not a "
+                                "revolute or prismatic joint")
+            a, b = self.model.lowerPositionLimit[joint.idx_q] / mult, self.model.upperPositionLimit[joint.idx_q] / mult
+            lo, hi = max(lo, min(a, b)), min(hi, max(a, b))
+            ids.append(jid)
+            linear.append((joint.idx_q, 0, float(mult)))
+        name = arm.gripper.joints[0][0]
+        return JointGroup(f"{arm.name}_gripper", (name,), _frozen([lo]), _frozen([hi]), (False,),
+                          tuple(ids), tuple(linear), ())
 
     def group(self, name: str) -> JointGroup:
         try:
@@ -293,39 +323,55 @@ class PR2:
         self._all.write(q, vector)
         return q
 
+    # -- the description's postures -------------------------------------------------------------
+    def home(self, arm: str) -> tuple[float, ...]:
+        """The arm's resting / driving posture (arm vector)."""
+        return self._arm[arm].home
+
+    def reach_seed(self, arm: str) -> tuple[float, ...]:
+        """The first IK seed for reaching forward at table height (default: home)."""
+        a = self._arm[arm]
+        return a.home if a.reach_seed is None else a.reach_seed
+
+    def carry_poses(self, arm: str) -> tuple[tuple[float, float, float, float], ...]:
+        """Tool poses (x, y, z, yaw) in the base frame to carry an object in, tried in order (may be empty)."""
+        return self._arm[arm].carry
+
     # -- reference configurations ---------------------------------------------------------
     def neutral_q(self) -> np.ndarray:
-        """All joints at zero (arms stretched forward), torso at ``torso_height``, base at origin."""
-        q = pin.neutral(self.model)
-        q[self._torso_q] = self.torso_height
-        return q
+        """Every joint at zero (or mid-range), held joints at their values, base at the origin."""
+        return self._neutral.copy()
 
     def default_q(self, base=(0.0, 0.0, 0.0)) -> np.ndarray:
-        """Driving configuration: both arms tucked (:data:`TUCKED_ARMS`), grippers closed."""
+        """Driving configuration: every arm at :meth:`home`, grippers closed."""
         q = self.neutral_q()
         self.groups["base"].write(q, base)
-        for arm in ARMS:
-            self.groups[f"{arm}_arm"].write(q, TUCKED_ARMS[arm])
+        for arm in self.arms:
+            self.groups[f"{arm}_arm"].write(q, self.home(arm))
+            g = self.groups[f"{arm}_gripper"]
+            g.write(q, [g.lower[0]])
         return q
 
-    def random_q(self, rng: np.random.Generator, q=None,
-                 groups=("base", "left_arm", "right_arm")) -> np.ndarray:
-        """``q`` (default: :meth:`default_q`) with ``groups`` sampled uniformly within bounds.
-
-        Use instead of ``pin.randomConfiguration``: the planar root has infinite limits.
+    def random_q(self, rng: np.random.Generator, q=None, groups=None) -> np.ndarray:
+        """``q`` (default: :meth:`default_q`) with ``groups`` (default: the base and every arm) sampled
+        uniformly within bounds.  Use instead of ``pin.randomConfiguration``: the planar root has infinite limits.
         """
         out = self.default_q() if q is None else np.array(q, dtype=float)
-        for g in groups:
+        for g in groups or ("base",) + tuple(f"{a}_arm" for a in self.arms):
             self.groups[g].write(out, self.groups[g].sample(rng))
         return out
 
     # -- kinematics ---------------------------------------------------------------------------
     def tool_frame(self, arm: str) -> str:
-        """Name of the tool frame (between the finger pads, x pointing out of the gripper)."""
-        return f"{_SIDE[arm]}_gripper_tool_frame"
+        """Name of the description's tool frame (between the finger pads)."""
+        return self._arm[arm].tool_frame
+
+    def tool_frame_id(self, arm: str) -> int:
+        """Id of the canonical tool frame (x = approach, y = closing) in :attr:`model`."""
+        return self._tool_frames[arm]
 
     def tool_pose(self, q, arm: str) -> np.ndarray:
-        """World pose (4x4) of ``{l,r}_gripper_tool_frame`` at ``q``."""
+        """World pose (4x4) of ``arm``'s canonical tool frame at ``q`` (x out of the hand, y closing)."""
         fid = self._tool_frames[arm]
         pin.forwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
         return pin.updateFramePlacement(self.model, self.data, fid).homogeneous.copy()
@@ -339,7 +385,7 @@ class PR2:
         return pin.updateFramePlacement(self.model, self.data, fid).homogeneous.copy()
 
     def tool_jacobian(self, q, arm: str) -> tuple[np.ndarray, np.ndarray]:
-        """(world pose 4x4, 6 x 7 Jacobian) of ``arm``'s tool frame at ``q``: the frame's linear and
+        """(world pose 4x4, 6 x n Jacobian) of ``arm``'s tool frame at ``q``: the frame's linear and
         angular velocity in world axes per arm-joint velocity."""
         fid = self._tool_frames[arm]
         J = pin.computeFrameJacobian(self.model, self.data, np.asarray(q, dtype=float), fid,
@@ -348,16 +394,27 @@ class PR2:
         return self.data.oMf[fid].homogeneous.copy(), J[:, cols]
 
     def velocity_limits(self, group: str) -> np.ndarray:
-        """The URDF's velocity limit of each joint of ``group`` (rad/s or m/s; inf if none)."""
+        """Velocity limit of each joint of ``group`` (rad/s or m/s; the description's, else the URDF's;
+        inf if none)."""
+        given = dict(self.description.velocity)
         lim = []
         for j in self.group(group).joint_ids:
             joint = self.model.joints[j]
-            lim += list(self.model.velocityLimit[joint.idx_v:joint.idx_v + joint.nv])
+            urdf = list(self.model.velocityLimit[joint.idx_v:joint.idx_v + joint.nv])
+            lim += [given[self.model.names[j]]] * joint.nv if self.model.names[j] in given else urdf
         return np.array([v if v < 1e300 else np.inf for v in lim])
+
+    def acceleration_limits(self, group: str) -> np.ndarray:
+        """Acceleration limit of each joint of ``group``: the description's, else twice the velocity limit."""
+        given = dict(self.description.acceleration)
+        vel = self.velocity_limits(group)
+        names = [self.model.names[j] for j in self.group(group).joint_ids
+                 for _ in range(self.model.joints[j].nv)]
+        return np.array([given.get(n, 2.0 * v) for n, v in zip(names, vel)])
 
     @staticmethod
     def base_pose(q) -> np.ndarray:
-        """World pose (4x4) of ``base_footprint`` (z = 0) from the planar root entries of ``q``."""
+        """World pose (4x4) of the root link (z = 0) from the planar root entries of ``q``."""
         c, s = q[2], q[3]
         return np.array([[c, -s, 0.0, q[0]], [s, c, 0.0, q[1]], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
 
@@ -368,56 +425,45 @@ class PR2:
                      if moving is None or g.parentJoint in moving)
 
     def gripper_links(self, arm: str) -> tuple[str, ...]:
-        """Collision geometries of the hand (palm, fingers, finger tips): a held object may touch them."""
-        return tuple(g.name for g in self.collision_model.geometryObjects
-                     if g.name.startswith(f"{_SIDE[arm]}_gripper_"))
+        """Collision geometries of the hand (the tool frame's parent link and the links below it: palm,
+        fingers): a held object may touch them."""
+        from .gripper import hand_geometries
+
+        cache = self.__dict__.setdefault("_hand_links", {})
+        if arm not in cache:
+            cache[arm] = hand_geometries(self.model, self.collision_model, self.model.getFrameId(self.tool_frame(arm)))
+        return cache[arm]
 
     # -- gripper --------------------------------------------------------------------------------
-    @cached_property
-    def _pad_gap_table(self) -> tuple[np.ndarray, np.ndarray]:
-        """Finger angle -> pad gap samples, measured on the collision meshes (see max_gripper_opening)."""
-        s = "l"
-        group = self.groups["left_gripper"]
-        angles = np.linspace(group.lower[0], group.upper[0], 56)
-        palm = self.model.getFrameId(f"{s}_gripper_palm_link")
-        geoms = {side: self.collision_model.geometryObjects[
-            self.collision_model.getGeometryId(f"{s}_gripper_{side}_finger_tip_link_0")] for side in "lr"}
-        verts = {side: np.array(g.geometry.vertices()) for side, g in geoms.items()}
-        gaps = []
-        for a in angles:
-            q = group.set(self.neutral_q(), [a])
-            pin.framesForwardKinematics(self.model, self.data, q)
-            palm_inv = self.data.oMf[palm].inverse()
-            y = {}
-            for side, g in geoms.items():
-                m = palm_inv * self.data.oMi[g.parentJoint] * g.placement  # mesh -> palm frame
-                y[side] = verts[side] @ m.rotation[1] + m.translation[1]
-            gaps.append(y["l"].min() - y["r"].max())
-        return angles, np.array(gaps)
+    def _gap_table(self, arm: str) -> tuple[np.ndarray, np.ndarray]:
+        from .gripper import pad_gap_table
+
+        cache = self.__dict__.setdefault("_gap_tables", {})
+        if arm not in cache:
+            cache[arm] = pad_gap_table(self, arm, self._arm[arm].gripper)
+        return cache[arm]
+
+    def gripper_range(self, arm: str) -> tuple[float, float]:
+        """(closed, widest) gap (m) between ``arm``'s finger pads, the gripper's DOF at its lower and upper
+        limit: measured on the finger links' collision geometry along the closing axis, or the description's
+        ``opening``.  Closed may be slightly negative (the pads' meshes overlap)."""
+        gaps = self._gap_table(arm)[1]
+        return float(gaps[0]), float(gaps[-1])
 
     @property
     def max_gripper_opening(self) -> float:
-        """Largest gap (m) between the inner finger-pad surfaces, finger joint at its upper limit.
-
-        Measured, not quoted: the two finger-tip collision meshes are placed by FK at
-        the limit (0.548 rad) and expressed in the palm frame, whose y axis is the
-        closing direction.  The tips stay parallel to the palm (tip joint = -finger
-        joint), so the gap is min y over the left-tip vertices minus max y over the
-        right-tip vertices; it agrees with ``coal.distance`` between the two tip meshes.
-        About 0.092 m: a 0.10 m wide object does not fit.
-        """
-        return float(self._pad_gap_table[1][-1])
+        """The widest gap (m) every arm's gripper opens to (PR2: about 0.092 m, a 0.10 m object does not fit)."""
+        return min(self.gripper_range(arm)[1] for arm in self.arms)
 
     def gripper_opening(self, q, arm: str) -> float:
-        """Pad gap (m) at the finger angle stored in ``q`` (negative when closed: pads overlap ~2 mm)."""
-        angles, gaps = self._pad_gap_table
-        return float(np.interp(self.groups[f"{arm}_gripper"].get(q)[0], angles, gaps))
+        """Pad gap (m) at the gripper DOF stored in ``q`` (may be negative when closed: pads overlap)."""
+        dofs, gaps = self._gap_table(arm)
+        return float(np.interp(self.groups[f"{arm}_gripper"].get(q)[0], dofs, gaps))
 
     def set_gripper_opening(self, q, arm: str, width: float) -> np.ndarray:
         """Copy of ``q`` with the pads ``width`` m apart (clipped to [closed, max_gripper_opening])."""
-        angles, gaps = self._pad_gap_table
-        angle = float(np.interp(width, gaps, angles))  # gap is increasing in the angle
-        return self.groups[f"{arm}_gripper"].set(q, [angle])
+        dofs, gaps = self._gap_table(arm)
+        return self.groups[f"{arm}_gripper"].set(q, [float(np.interp(width, gaps, dofs))])  # gap increases
 
     def open_gripper(self, q, arm: str) -> np.ndarray:
         g = self.groups[f"{arm}_gripper"]

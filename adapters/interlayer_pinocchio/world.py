@@ -24,7 +24,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from .robot import ARMS, PR2, as_se3
+from .robot import Robot, as_se3
 
 __all__ = ["CollisionWorld", "WorldObject", "Attachment"]
 
@@ -116,9 +116,9 @@ class _Slot:
 
 
 class CollisionWorld:
-    """Environment objects around a :class:`PR2`, held objects, and collision queries on full ``q``."""
+    """Environment objects around a :class:`Robot`, held objects, and collision queries on full ``q``."""
 
-    def __init__(self, robot: PR2):
+    def __init__(self, robot: Robot):
         self.robot = robot
         self._model = robot.model
         self._data = robot.model.createData()
@@ -131,12 +131,12 @@ class CollisionWorld:
         self._local_boxes = {}  # id(geometry) -> (its local AABB's corners, geometry)
         self._bounds = {}  # group -> (version, motion_bound)
         self._hands = {}  # (arm, finger angle) -> [(hand geometry, its pose in the tool frame)]
-        self._tool_joint = {arm: robot.model.frames[robot.model.getFrameId(robot.tool_frame(arm))].parentJoint
-                            for arm in ARMS}
+        self._arms = robot.arms
+        self._tool_joint = {arm: robot.model.frames[robot.tool_frame_id(arm)].parentJoint for arm in robot.arms}
         names = [g.name for g in robot.collision_model.geometryObjects]
         self._link_names = tuple(robot.model.frames[g.parentFrame].name
                                  for g in robot.collision_model.geometryObjects)
-        self._gripper = {arm: np.isin(names, robot.gripper_links(arm)) for arm in ARMS}
+        self._gripper = {arm: np.isin(names, robot.gripper_links(arm)) for arm in robot.arms}
 
     # -- objects ------------------------------------------------------------------------------
     def add_box(self, name: str, size: Sequence[float], pose, movable: bool = False,
@@ -221,8 +221,8 @@ class CollisionWorld:
         the other held object and every robot link except this hand (palm, fingers).
         """
         obj = self._get(name)
-        if arm not in ARMS:
-            raise ValueError(f"arm must be one of {ARMS}")
+        if arm not in self._arms:
+            raise ValueError(f"arm must be one of {self._arms}")
         if obj.held_by is not None:
             raise ValueError(f"{name!r} is already held by the {obj.held_by} arm")
         if any(o.held_by == arm for o in self._objects.values()):
@@ -494,7 +494,7 @@ class CollisionWorld:
             q = _as_q(q)
             model, data = self._model, self._data
             pin.forwardKinematics(model, data, q)
-            fid = model.getFrameId(self.robot.tool_frame(arm))
+            fid = self.robot.tool_frame_id(arm)
             tool = pin.updateFramePlacement(model, data, fid)
             gm = self.robot.collision_model
             geoms = [go.geometry for go, hand in zip(gm.geometryObjects, self._gripper[arm]) if hand]
@@ -536,7 +536,7 @@ class CollisionWorld:
         if obj.held_by is None:
             go.parentJoint, go.parentFrame, go.placement = 0, 0, obj.pose
         else:
-            fid = self._model.getFrameId(self.robot.tool_frame(obj.held_by))
+            fid = self.robot.tool_frame_id(obj.held_by)
             go.parentJoint, go.parentFrame = self._tool_joint[obj.held_by], fid
             go.placement = self._model.frames[fid].placement * obj.grasp  # joint_T_tool * tool_T_object
 
@@ -600,7 +600,7 @@ class CollisionWorld:
         if unknown:
             raise KeyError(f"ignore names unknown objects: {sorted(unknown)}")
         n, nr = self._gm.ngeoms, self._n_robot
-        held = np.full(n, -1)  # index into ARMS of the holding arm
+        held = np.full(n, -1)  # index into robot.arms of the holding arm
         movable = np.zeros(n, dtype=bool)
         ignored = np.zeros(n, dtype=bool)
         joint = np.zeros(n, dtype=int)  # parent joint, for "moves with group"
@@ -609,14 +609,14 @@ class CollisionWorld:
             movable[obj.gid] = obj.movable
             ignored[obj.gid] = obj.name in ignore
             if obj.held_by is not None:
-                held[obj.gid] = ARMS.index(obj.held_by)
+                held[obj.gid] = self._arms.index(obj.held_by)
                 joint[obj.gid] = self._tool_joint[obj.held_by]
         is_held = held >= 0
         a, b = self._pa, self._pb
         robot_a, robot_b = a < nr, b < nr
         # holder_hand[k]: pair k is (robot geom a, held object b) and a belongs to the holding hand
         holder_hand = np.zeros(len(a), dtype=bool)
-        for i, arm in enumerate(ARMS):
+        for i, arm in enumerate(self._arms):
             sel = robot_a & ~robot_b & (held[b] == i)
             holder_hand[sel] = self._gripper[arm][a[sel]]
         if mode == "check":

@@ -102,7 +102,7 @@ class ClutterSampler(EpochState):
         blockers with this arm's (see ManipulationGeometry.approach_blocked). An other arm that holds an object
         is asked as it will be once it has put that down: out of the way, the arm tucked."""
         other = next(a for a in ARMS if a != arm)
-        free = _hand_emptied(world, other) if world.held.get(other) else world
+        free = _hand_emptied(problem.geometry, world, other) if world.held.get(other) else world
         ranked = self.ranked_grasps(problem, free, obj, other)
         if not ranked or not ranked[0][0][0]:
             return None
@@ -129,10 +129,9 @@ class ClutterSampler(EpochState):
         want = 12 if target else 6
         n_bases = 3 * tries if target else tries
         found = []
-        from interlayer_pinocchio import TUCKED_ARMS
-
         # the other arm tucked and nothing held: the candidates must not depend on the world they were asked in
-        w0 = replace(world, held={}, arms={a: tuple(TUCKED_ARMS[a]) for a in ARMS}, grippers={a: "closed" for a in ARMS})
+        w0 = replace(world, held={}, arms={a: tuple(geometry.robot.home(a)) for a in ARMS},
+                     grippers={a: "closed" for a in ARMS})
         for i in range(n_bases + 2 * tries):
             if i >= n_bases and found:
                 break  # past the first bases, only search on while nothing at all was found
@@ -369,15 +368,13 @@ def in_corridors(x, y, corridors) -> float:
     return sum(weight for weight, xy in corridors if np.min(np.hypot(xy[:, 0] - x, xy[:, 1] - y)) < CORRIDOR)
 
 
-def _hand_emptied(world, arm):
+def _hand_emptied(geometry, world, arm):
     """``world`` with ``arm``'s object put down where nothing is (far below the floor: where it will go is
     not known yet) and the arm tucked."""
-    from interlayer_pinocchio import TUCKED_ARMS
-
     obj = world.held[arm][0]
     return replace(world, held={a: h for a, h in world.held.items() if a != arm},
                    objects={**world.objects, obj: pose4(0.0, 0.0, -10.0, 0.0)},
-                   arms={**world.arms, arm: tuple(TUCKED_ARMS[arm])}, grippers={**world.grippers, arm: "closed"})
+                   arms={**world.arms, arm: tuple(geometry.robot.home(arm))}, grippers={**world.grippers, arm: "closed"})
 
 
 def _pose_key(P):

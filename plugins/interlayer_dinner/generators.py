@@ -25,7 +25,6 @@ from dataclasses import replace
 import numpy as np
 
 from interlayer.refine import Candidate
-from interlayer_pinocchio import TUCKED_ARMS
 from interlayer_manip.generators import _base_free, _bearing, _fmt, _line, _problem_grasps, _putdown, _waypoints, grasp_poses
 from interlayer_manip.state import LIFT, PRE_GRASP, pose4, trans, wrap
 
@@ -201,7 +200,8 @@ def place_tray(problem, step, world, rng, limit: int = 4, tries: int = 30):
         base = _base_of(P @ np.linalg.inv(rel))
         w = replace(world, base=base)
         tucked = replace(w, objects={**w.objects, **{k: base_matrix(base) @ r for k, r in world.carrying.items()}},
-                         carrying={}, arms=dict(TUCKED_ARMS), grippers={"left": "closed", "right": "closed"})
+                         carrying={}, arms={a: geometry.robot.home(a) for a in geometry.robot.arms},
+                         grippers={"left": "closed", "right": "closed"})
         if not geometry.base_space.within_bounds(base) or geometry.in_collision(w) or geometry.in_collision(tucked):
             continue
         B = base_matrix(base)

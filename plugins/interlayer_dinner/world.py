@@ -19,9 +19,8 @@ import numpy as np
 from interlayer.domain import GroundStep
 from interlayer.motion import MotionQuery
 from interlayer.refine import Failure, StepOutcome
-from interlayer_pinocchio import TUCKED_ARMS
 from interlayer_manip.scene import REST_GAP, _radius
-from interlayer_manip.state import CARRY, PADDING, World, _failure, _holding, pose4, rz, trans
+from interlayer_manip.state import PADDING, World, _failure, _holding, pose4, rz, trans
 from interlayer_manip.world import ManipulationGeometry
 
 from .scene import TOP, TRAY
@@ -271,7 +270,7 @@ class DinnerGeometry(ManipulationGeometry):
         raised = self.raised(w, "left")
         if raised is None:
             return StepOutcome(False, failure=Failure("ik", (), "no collision-free raised posture for the left arm"))
-        for arm, goal in (("left", raised), ("right", TUCKED_ARMS["right"]), ("left", TUCKED_ARMS["left"])):
+        for arm, goal in (("left", raised), ("right", self.robot.home("right")), ("left", self.robot.home("left"))):
             res = self._plan(motion, self.arm_query(w, arm, w.arms[arm], goal, "tray tuck", acc), "transit",
                              f"{arm}_arm", segs, {}, w, acc)
             if not res.ok:
@@ -324,10 +323,9 @@ class DinnerGeometry(ManipulationGeometry):
 
     def raised(self, world, arm):
         """An arm vector with the hand raised beside its shoulder (the PR2's carry postures), or None."""
-        sg = 1.0 if arm == "left" else -1.0
         B = base_matrix(world.base)
-        for x, y, z, a in CARRY:
-            sol = self.ik(world, arm, B @ trans(x, sg * y, z) @ rz(sg * a), np.random.default_rng(0), movables=True,
+        for x, y, z, a in self.robot.carry_poses(arm):
+            sol = self.ik(world, arm, B @ trans(x, y, z) @ rz(a), np.random.default_rng(0), movables=True,
                           attempts=10, seed=world.arms[arm])
             if sol is not None:
                 return sol

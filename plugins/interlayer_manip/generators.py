@@ -231,13 +231,11 @@ def move_base(problem, step, world, rng, limit: int = 6, tries: int = 60, grasps
 def _base_free(geometry, world, base, tuck=None) -> bool:
     """The robot at ``base`` clear of fixed obstacles; with ``tuck`` (an arm putting something down), also
     with that arm tucked and empty, as the put-down leaves it: the tucked elbow sticks out sideways."""
-    from interlayer_pinocchio import TUCKED_ARMS
-
     w = replace(world, base=tuple(base))
     if not geometry.base_space.within_bounds(base):
         return False
     if tuck is not None and geometry.in_collision(replace(w, held={a: h for a, h in w.held.items() if a != tuck})
-                                                  .with_arm(tuck, TUCKED_ARMS[tuck]), movables=False):
+                                                  .with_arm(tuck, geometry.robot.home(tuck)), movables=False):
         return False
     return not geometry.in_collision(w, movables=False)
 

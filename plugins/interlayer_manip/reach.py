@@ -9,7 +9,7 @@ import numpy as np
 
 from interlayer.refine import Failure, StepOutcome
 
-from .state import CARRY, REACH_SEED, rz, trans
+from .state import rz, trans
 
 
 class Reach:
@@ -18,7 +18,7 @@ class Reach:
         fixed obstacles (and movables if asked), or None."""
         from interlayer_pinocchio import solve_ik
 
-        w = world.with_arm(arm, REACH_SEED[arm] if seed is None else seed)
+        w = world.with_arm(arm, self.robot.reach_seed(arm) if seed is None else seed)
         if gripper:
             w = w.with_gripper(arm, gripper)
         with self.stats.timer("ik"):  # the sync (the seed configuration) is the solver's set-up
@@ -46,13 +46,12 @@ class Reach:
         return line
 
     def carry(self, world, arm, rng):
-        sg = 1.0 if arm == "left" else -1.0
         B = self.robot.base_pose(self.config(world))
         G = world.held[arm][1]
         top = abs((G[:3, :3].T @ np.array([1.0, 0, 0]))[2]) > 0.7  # tool x along the object's axis: a top grasp
-        for x, y, z, a in CARRY:
-            R = rz(sg * a) if not top else rz(sg * a) @ np.array([[0, 0, 1, 0], [0, 1, 0, 0], [-1, 0, 0, 0], [0, 0, 0, 1.0]])
-            T = B @ trans(x, sg * y, z) @ R
+        for x, y, z, a in self.robot.carry_poses(arm):
+            R = rz(a) if not top else rz(a) @ np.array([[0, 0, 1, 0], [0, 1, 0, 0], [-1, 0, 0, 0], [0, 0, 0, 1.0]])
+            T = B @ trans(x, y, z) @ R
             sol = self.ik(world, arm, T, rng, movables=True, attempts=10)
             if sol is not None:
                 return sol

@@ -236,16 +236,14 @@ class Refiners:
     def retreat_and_tuck(self, motion, w, arm, group, retreat, what, segs, acc):
         """The open hand's straight retreat along ``retreat``, the gripper closed, the arm tucked: the
         end of every step that lets go of something (``what`` names it in failures)."""
-        from interlayer_pinocchio import TUCKED_ARMS
-
         w, failed = self.retreat(w, arm, retreat, f"{what} retreat", segs, acc)
         if failed:
             return failed
-        res = self._plan(motion, self.arm_query(w, arm, retreat[-1], TUCKED_ARMS[arm], f"{what} tuck", acc), "transit",
+        res = self._plan(motion, self.arm_query(w, arm, retreat[-1], self.robot.home(arm), f"{what} tuck", acc), "transit",
                          group, segs, _holding(w), w, acc)
         if not res.ok:
             return _failure(res, f"{what} tuck")
-        return StepOutcome(True, w.with_arm(arm, TUCKED_ARMS[arm]), segs)
+        return StepOutcome(True, w.with_arm(arm, self.robot.home(arm)), segs)
 
     def set_gripper(self, w, arm, state, segs, what, exclude=None):
         """The arm's gripper set to ``state`` ("open", ("open", width), "closed" or a width in metres: closed

@@ -8,8 +8,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from interlayer.refine import Failure, StepOutcome
+from interlayer_pinocchio.description import describe  # a TOML read: no Pinocchio
 
-ARMS = ("left", "right")
+# The PR2's arm names, for building domains before a robot exists (the geometry reads self.robot.arms).
+ARMS = tuple(a.name for a in describe("pr2").arms)
 RES_ARM = 0.02  # rad between collision checks when planning an arm (the validator checks 5x finer)
 # Planning keeps this far from fixed obstacles (their boxes are padded), so that contacts missed
 # between two checks at RES_ARM (the fingertips move up to ~1.6 cm per 0.02 rad) are not real ones;
@@ -23,10 +25,6 @@ PRE_GRASP = 0.20  # back-off of the pre-grasp along the tool x axis (approach an
 LIFT = 0.05  # raise after grasping / height above the put-down spot
 OPEN_CLEARANCE = 0.01  # m: a gripper about to grasp or let go opens this much wider than the object (5 mm a side)
 FOLLOWS = 1e3  # the velocity / acceleration "limit" of a joint driven by the hand (a drawer's slide)
-# First IK seed for reaching forward at table height (elbow up, measured typical solutions)
-REACH_SEED = {"left": (-0.4, -0.25, 3.3, -1.53, 2.75, -1.2, 0.0), "right": (0.4, -0.25, -3.3, -1.53, -2.75, -1.2, 0.0)}
-# Carry postures (tool position in the base frame, yaw away from the body): tried in order.
-CARRY = ((0.35, 0.45, 1.15, 0.3), (0.30, 0.50, 1.10, 0.5), (0.40, 0.40, 1.20, 0.1), (0.25, 0.55, 1.20, 0.7))
 
 
 def rz(a: float) -> np.ndarray:

@@ -36,11 +36,11 @@ class ManipulationGeometry(MotionQueries, Reach, Refiners, Articulated, Output):
     queries, IK and grasps, the refiners, articulated bodies and the trajectory output in the mixins."""
 
     def __init__(self, layout: Layout, padding: float = PADDING):
-        from interlayer_pinocchio import PR2, CollisionWorld
+        from interlayer_pinocchio import CollisionWorld, Robot
 
         self.layout = layout
         self.padding = padding
-        self.robot = PR2(torso_height=layout.extra.get("torso_height", 0.2), base_limits=base_limits(layout))
+        self.robot = Robot.load("pr2", torso_height=layout.extra.get("torso_height", 0.2), base_limits=base_limits(layout))
         self.cw = CollisionWorld(self.robot)
         for o in layout.fixed + layout.objects:
             T = pose4(*o.pose)
@@ -69,7 +69,7 @@ class ManipulationGeometry(MotionQueries, Reach, Refiners, Articulated, Output):
         # interpolates linearly), the core's densify (validator, straight lines) and a controller
         # reading trajectory.json (linear in joint values).
         self.arm_space = {}
-        for arm in ARMS:
+        for arm in self.robot.arms:
             g = self.robot.group(f"{arm}_arm")
             self.arm_space[arm] = ConfigSpace("vector", tuple(g.lower), tuple(g.upper), (False,) * g.dof, RES_ARM)
 
@@ -81,9 +81,8 @@ class ManipulationGeometry(MotionQueries, Reach, Refiners, Articulated, Output):
                             self._initial_riders)
 
     def initial_world(self) -> World:
-        from interlayer_pinocchio import TUCKED_ARMS
-
-        return World(tuple(self.layout.base), {a: tuple(TUCKED_ARMS[a]) for a in ARMS}, {a: "closed" for a in ARMS},
+        arms = self.robot.arms
+        return World(tuple(self.layout.base), {a: tuple(self.robot.home(a)) for a in arms}, {a: "closed" for a in arms},
                      {o.name: pose4(*o.pose) for o in self.layout.objects}, {},
                      joints=dict(self._initial_joints), riders=dict(self._initial_riders))
 

@@ -36,17 +36,15 @@ class PBGeometry(ManipulationGeometry):
         self.start_arms = self._start_arms(layout.extra.get("arms", {}))
 
     def _start_arms(self, conf) -> dict:
-        from interlayer_pinocchio import TUCKED_ARMS
-
         out = {}
         for arm in ARMS:
             g = self.robot.group(f"{arm}_arm")
             given = conf.get(arm, {})
             if not any(j in given for j in g.dof_names):
-                out[arm] = tuple(TUCKED_ARMS[arm])  # no arm joints in the file: tucked
+                out[arm] = tuple(self.robot.home(arm))  # no arm joints in the file: tucked
                 continue
             values = []
-            for j, lo, hi, circ, tucked in zip(g.dof_names, g.lower, g.upper, g.circular, TUCKED_ARMS[arm]):
+            for j, lo, hi, circ, tucked in zip(g.dof_names, g.lower, g.upper, g.circular, self.robot.home(arm)):
                 v = given.get(j, tucked)
                 v = wrap(v) if circ or (lo <= -math.pi + 1e-6 and hi >= math.pi - 1e-6) else v
                 if not lo - 1e-6 <= v <= hi + 1e-6:
@@ -207,26 +205,21 @@ class PBGeometry(ManipulationGeometry):
         finally:
             self.stats.add_time("collision_checking", acc[0])
 
-    @staticmethod
-    def tucked(world):
+    def tucked(self, world):
         """``world`` with every empty arm tucked (where :meth:`_tuck` moves them)."""
-        from interlayer_pinocchio import TUCKED_ARMS
-
-        return replace(world, arms={a: v if a in world.held else tuple(TUCKED_ARMS[a]) for a, v in world.arms.items()})
+        return replace(world, arms={a: v if a in world.held else tuple(self.robot.home(a)) for a, v in world.arms.items()})
 
     def _tuck(self, world, motion, segs, acc):
         """Tuck every empty arm that is not (the start configuration may hold them out)."""
-        from interlayer_pinocchio import TUCKED_ARMS
-
         w = world
         for arm in ARMS:
-            if arm in w.held or np.allclose(w.arms[arm], TUCKED_ARMS[arm], atol=1e-9):
+            if arm in w.held or np.allclose(w.arms[arm], self.robot.home(arm), atol=1e-9):
                 continue
-            res = self._plan(motion, self.arm_query(w, arm, w.arms[arm], TUCKED_ARMS[arm], "tuck", acc), "transit",
+            res = self._plan(motion, self.arm_query(w, arm, w.arms[arm], self.robot.home(arm), "tuck", acc), "transit",
                              f"{arm}_arm", segs, _holding(w), w, acc)
             if not res.ok:
                 return world, _failure(res, f"{arm} arm tuck")
-            w = w.with_arm(arm, TUCKED_ARMS[arm])
+            w = w.with_arm(arm, self.robot.home(arm))
         return w, None
 
     def _go_home(self, world, motion, acc):

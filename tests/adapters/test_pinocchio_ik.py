@@ -8,12 +8,12 @@ import pytest
 
 pin = pytest.importorskip("pinocchio")
 
-from interlayer_pinocchio import PR2, CollisionWorld, solve_ik  # noqa: E402
+from interlayer_pinocchio import CollisionWorld, Robot, solve_ik  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def robot():
-    return PR2()
+    return Robot.load("pr2")
 
 
 def pose_error(a, b):
@@ -75,7 +75,7 @@ def test_ik_prefers_current_configuration(robot):
 
 
 def test_ik_tracks_base_and_torso(robot):
-    tall = PR2(torso_height=0.3)
+    tall = Robot.load("pr2", torso_height=0.3)
     rng = np.random.default_rng(4)
     q = tall.random_q(rng)
     target = tall.tool_pose(q, "right")

@@ -12,12 +12,12 @@ import pytest
 pin = pytest.importorskip("pinocchio")
 coal = pytest.importorskip("coal")
 
-from interlayer_pinocchio import PR2, TUCKED_ARMS, CollisionWorld  # noqa: E402
+from interlayer_pinocchio import CollisionWorld, Robot  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def robot():
-    return PR2()
+    return Robot.load("pr2")
 
 
 def test_package_import_is_lazy():
@@ -72,7 +72,7 @@ def test_set_copies_and_keeps_torso(robot):
     q = robot.default_q()
     q2 = robot.set(q, "right_arm", np.zeros(7))
     assert not np.array_equal(q, q2)
-    np.testing.assert_allclose(robot.get(q, "right_arm"), TUCKED_ARMS["right"], atol=1e-12)
+    np.testing.assert_allclose(robot.get(q, "right_arm"), robot.home("right"), atol=1e-12)
     torso = robot.model.joints[robot.model.getJointId("torso_lift_joint")].idx_q
     assert q2[torso] == robot.torso_height == 0.2
     with pytest.raises(ValueError):
@@ -81,12 +81,12 @@ def test_set_copies_and_keeps_torso(robot):
 
 def test_default_configuration_is_collision_free_and_compact():
     for height in (0.0, 0.1, 0.2, 0.31):
-        robot = PR2(torso_height=height)
+        robot = Robot.load("pr2", torso_height=height)
         world = CollisionWorld(robot)
         q = robot.default_q(base=(1.0, 2.0, 0.3))
         assert not world.in_collision(q), world.collision_pairs(q)
         np.testing.assert_allclose(robot.get(q, "base"), [1.0, 2.0, 0.3])
-    robot = PR2()
+    robot = Robot.load("pr2")
     q = robot.default_q()
     # tucked arms stay near the footprint (base is ~0.67 m square): good for driving
     for arm in ("left", "right"):

@@ -8,7 +8,7 @@ import pytest
 pin = pytest.importorskip("pinocchio")
 coal = pytest.importorskip("coal")
 
-from interlayer_pinocchio import PR2, CollisionWorld  # noqa: E402
+from interlayer_pinocchio import CollisionWorld, Robot  # noqa: E402
 
 
 def translation(x, y, z):
@@ -19,7 +19,7 @@ def translation(x, y, z):
 
 @pytest.fixture(scope="module")
 def robot():
-    return PR2()
+    return Robot.load("pr2")
 
 
 def table_world(robot, seed=0):
