@@ -9,12 +9,15 @@ import numpy as np
 from interlayer.refine import Candidate, EpochState
 from interlayer_manip.generators import _base_free
 from interlayer_manip.scene import REST_GAP, base_limits, table_top
-from interlayer_manip.state import ARMS, pose4, wrap
+from interlayer_manip.state import pose4, wrap
 
 
 def base_near(geometry, x, y, rng, reach=(0.55, 0.95), heading=None):
     """A base pose facing (x, y) from outside the table, sampled around the table's sides; behind the
-    tool when its ``heading`` is fixed (a given object pose and grasp: most sides cannot reach it)."""
+    tool when its ``heading`` is fixed (a given object pose and grasp: most sides cannot reach it).
+    A fixed-base robot: where it stands."""
+    if not geometry.robot.mobile:
+        return tuple(geometry.layout.base)
     xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
     (lx, hx), (ly, hy) = base_limits(geometry.layout)
     for _ in range(20):
@@ -101,7 +104,9 @@ class ClutterSampler(EpochState):
         every one of its grasps has objects in the way; else None. The refinement learns that grasp's
         blockers with this arm's (see ManipulationGeometry.approach_blocked). An other arm that holds an object
         is asked as it will be once it has put that down: out of the way, the arm tucked."""
-        other = next(a for a in ARMS if a != arm)
+        other = next((a for a in problem.geometry.robot.arms if a != arm), None)
+        if other is None:  # a one-armed robot: no other arm to ask about
+            return None
         free = _hand_emptied(problem.geometry, world, other) if world.held.get(other) else world
         ranked = self.ranked_grasps(problem, free, obj, other)
         if not ranked or not ranked[0][0][0]:
@@ -130,8 +135,9 @@ class ClutterSampler(EpochState):
         n_bases = 3 * tries if target else tries
         found = []
         # the other arm tucked and nothing held: the candidates must not depend on the world they were asked in
-        w0 = replace(world, held={}, arms={a: tuple(geometry.robot.home(a)) for a in ARMS},
-                     grippers={a: "closed" for a in ARMS})
+        arms = geometry.robot.arms
+        w0 = replace(world, held={}, arms={a: tuple(geometry.robot.home(a)) for a in arms},
+                     grippers={a: "closed" for a in arms})
         for i in range(n_bases + 2 * tries):
             if i >= n_bases and found:
                 break  # past the first bases, only search on while nothing at all was found
