@@ -158,3 +158,17 @@ def test_panda_canonical_tool_frame_points_out_of_the_hand():
     assert abs(closed) < 1e-3 and widest == pytest.approx(0.08, abs=1e-3)  # two fingers of 0.04 m
     assert robot.gripper_links("arm")[0] == "panda_hand_0"
     assert {g.split("_")[1] for g in robot.gripper_links("arm")} == {"hand", "leftfinger", "rightfinger"}
+
+
+def test_the_robot_layers_public_names_are_documented():
+    """A robot plugin imports the robot layer's names from the package (docs/plugins.md lists them)."""
+    import interlayer_optim.timing
+    import interlayer_pinocchio
+
+    doc = (Path(__file__).parents[2] / "docs" / "plugins.md").read_text()
+    for name in interlayer_pinocchio.__all__:
+        obj = getattr(interlayer_pinocchio, name)
+        assert (obj.__doc__ or "").strip(), f"{name} has no docstring"
+        assert f"`{name}" in doc, f"{name} is not in docs/plugins.md's robot layer table"
+    assert callable(interlayer_optim.timing.time_parameterize)
+    assert "`interlayer_optim.timing.time_parameterize(" in doc and "`interlayer_meshcat.add_pinocchio_robot(" in doc
