@@ -78,7 +78,7 @@ class Robot:
             lo, hi = self.model.lowerPositionLimit[qi], self.model.upperPositionLimit[qi]
             if not lo <= value <= hi:
                 field = "torso_height" if jname == desc.torso else f"hold.{jname}"
-                raise UserError(f"{desc.where(field)}: {value} is outside {jname}'s range [{lo}, {hi}]")
+                raise UserError(f"{desc.where(field)}: {value} is outside {jname}'s range [{lo:.4g}, {hi:.4g}]")
             self._held.append((qi, float(value)))
         self.torso_height = None if desc.torso is None else float(held[desc.torso])
         self.base_limits = (tuple(map(float, base_limits[0])), tuple(map(float, base_limits[1])))
