@@ -149,6 +149,10 @@ class Robot:
         return JointGroup(f"{arm.name}_gripper", (name,), _frozen([lo]), _frozen([hi]), (False,),
                           tuple(ids), tuple(linear), ())
 
+    def arm_of(self, group: str) -> str | None:
+        """The arm a group belongs to (``{arm}_arm``, ``{arm}_gripper``; arm names may contain ``_``), or None."""
+        return next((a for a in self.arms if group in (f"{a}_arm", f"{a}_gripper")), None)
+
     def group(self, name: str) -> JointGroup:
         try:
             return self.groups[name]
@@ -218,6 +222,16 @@ class Robot:
         return out
 
     # -- kinematics ---------------------------------------------------------------------------
+    def reach(self, arm: str) -> tuple[np.ndarray, float]:
+        """(origin of the arm's first joint in the base frame, at the held joint values; an upper bound on
+        the distance from it to the tool frame: the chain's link offsets added up)."""
+        from .ik import arm_ik
+
+        q = self.default_q()
+        pin.forwardKinematics(self.model, self.data, q)
+        first = self.groups[f"{arm}_arm"].joint_ids[0]
+        return self.data.oMi[first].translation.copy(), float(arm_ik(self, arm).reach)
+
     def tool_frame(self, arm: str) -> str:
         """Name of the description's tool frame (between the finger pads)."""
         return self._arm[arm].tool_frame

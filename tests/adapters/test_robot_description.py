@@ -183,3 +183,13 @@ def test_held_joint_overrides_are_checked_against_the_urdf():
         Robot.load("panda", torso_height=0.2)
     with pytest.raises(UserError, match=r"^panda.toml: hold.panda_joint4: 0.5 is outside panda_joint4's range \[-3.072, -0.0698\]$"):
         Robot.load("panda", hold={"panda_joint4": 0.5})
+
+
+def test_reach_and_group_arms():
+    robot = Robot.load("panda")
+    shoulder, radius = robot.reach("arm")
+    np.testing.assert_allclose(shoulder, [0.0, 0.0, 0.333], atol=1e-9)  # panda_joint1 above the base
+    rng = np.random.default_rng(0)
+    for _ in range(50):  # an upper bound: no configuration puts the tool farther
+        assert np.linalg.norm(robot.tool_pose(robot.random_q(rng, groups=("arm_arm",)), "arm")[:3, 3] - shoulder) <= radius
+    assert robot.arm_of("arm_arm") == robot.arm_of("arm_gripper") == "arm" and robot.arm_of("base") is None
