@@ -185,7 +185,7 @@ def test_held_joint_overrides_are_checked_against_the_urdf():
         Robot.load("panda", hold={"panda_joint4": 0.5})
 
 
-def test_reach_and_group_arms():
+def test_reach_and_group_arms(tmp_path):
     robot = Robot.load("panda")
     shoulder, radius = robot.reach("arm")
     np.testing.assert_allclose(shoulder, [0.0, 0.0, 0.333], atol=1e-9)  # panda_joint1 above the base
@@ -193,3 +193,6 @@ def test_reach_and_group_arms():
     for _ in range(50):  # an upper bound: no configuration puts the tool farther
         assert np.linalg.norm(robot.tool_pose(robot.random_q(rng, groups=("arm_arm",)), "arm")[:3, 3] - shoulder) <= radius
     assert robot.arm_of("arm_arm") == robot.arm_of("arm_gripper") == "arm" and robot.arm_of("base") is None
+    named = Robot.load(_variant(tmp_path, 'name = "arm"', 'name = "the_arm"'))  # names are data: "_" included
+    assert named.arms == ("the_arm",) and named.arm_of("the_arm_gripper") == "the_arm"
+    assert named.group("the_arm_arm").dof == 7
