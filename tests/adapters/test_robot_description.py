@@ -196,3 +196,16 @@ def test_reach_and_group_arms(tmp_path):
     named = Robot.load(_variant(tmp_path, 'name = "arm"', 'name = "the_arm"'))  # names are data: "_" included
     assert named.arms == ("the_arm",) and named.arm_of("the_arm_gripper") == "the_arm"
     assert named.group("the_arm_arm").dof == 7
+
+
+def test_gripper_opening_given_and_limits_overridden(tmp_path):
+    path = _variant(tmp_path, 'fingers = ["panda_leftfinger", "panda_rightfinger"]', "opening = [0.01, 0.09]")
+    path.write_text(path.read_text() + "\n[limits]\nvelocity = { panda_joint1 = 1.5 }\n"
+                    "acceleration = { panda_joint2 = 7.0 }\n")
+    robot = Robot.load(path)
+    assert robot.gripper_range("arm") == (0.01, 0.09)  # the pad gap at the DOF's limits, linear between
+    q = robot.set_gripper_opening(robot.default_q(), "arm", 0.05)
+    assert robot.get(q, "arm_gripper")[0] == pytest.approx(0.02) and robot.gripper_opening(q, "arm") == pytest.approx(0.05)
+    vel, acc = robot.velocity_limits("arm_arm"), robot.acceleration_limits("arm_arm")
+    assert vel[0] == 1.5 and vel[1] == pytest.approx(2.175)  # given, else the URDF's
+    assert acc[0] == 3.0 and acc[1] == 7.0 and acc[2] == pytest.approx(4.35)  # given, else twice the velocity
