@@ -130,6 +130,7 @@ class PR2Geometry:
         self.bodies = {}  # articulated environment bodies (interlayer_pinocchio.ArticulatedBody): add_body
         self._initial_joints, self._initial_riders = {}, {}
         self._synced = None
+        self._exporting = False  # prepare_export: segments are timed as they are made
         lo, hi = base_limits(layout)
         self.base_space = ConfigSpace("se2", (lo[0], hi[0], -math.pi), (lo[1], hi[1], math.pi), (False, False, True), RES_BASE)
         # Arm spaces: the continuous forearm / wrist roll joints are treated as bounded to [-pi, pi]
@@ -598,13 +599,35 @@ class PR2Geometry:
         """A motion segment; its points get their timing when the plan is written (``timed``)."""
         names = ["x", "y", "theta"] if group == "base" else list(self.robot.group(group).dof_names)
         points = [{"positions": [float(v) for v in p]} for p in path]
-        return {"kind": kind, "group": group, "joint_names": names, "points": points, "holding": holding}
+        segment = {"kind": kind, "group": group, "joint_names": names, "points": points, "holding": holding}
+        if self._exporting:  # timed by the worker while the run goes on
+            from interlayer_optim.timing import prefetch
+
+            prefetch(*self._timing_args(segment))
+        return segment
+
+    def prepare_export(self):
+        """The run's trajectory will be written: a worker process times segments as they are made."""
+        from interlayer_optim.timing import start_worker
+
+        start_worker()
+        self._exporting = True
 
     def timed(self, segment) -> dict:
         """``segment`` with TOPP-RA timing: positions (densified to the planning resolution),
         velocities, accelerations and time_from_start within :meth:`limits`."""
         from interlayer_optim.timing import time_parameterize
 
+        path, vmax, amax, step = self._timing_args(segment)
+        with self.stats.timer("timing"):
+            points = time_parameterize(path, vmax, amax, step=step)
+        if segment["group"] == "base":
+            for p in points:
+                p["positions"][2] = wrap(p["positions"][2])
+        return {**segment, "points": points}
+
+    def _timing_args(self, segment):
+        """What :meth:`timed` asks TOPP-RA: the path, the velocity and acceleration limits, the step."""
         group = segment["group"]
         space = self.base_space if group == "base" else self.arm_space[group.split("_")[0]]
         path = [np.asarray(p["positions"], float) for p in segment["points"]]
@@ -616,12 +639,7 @@ class PR2Geometry:
         extra = len(path[0]) - len(vmax)
         if extra > 0:  # a pull: the articulated body's joints follow the hand; the arm's limits bind
             vmax, amax = np.append(vmax, [FOLLOWS] * extra), np.append(amax, [FOLLOWS] * extra)
-        with self.stats.timer("timing"):
-            points = time_parameterize(path, vmax, amax, step=space.resolution)
-        if group == "base":
-            for p in points:
-                p["positions"][2] = wrap(p["positions"][2])
-        return {**segment, "points": points}
+        return path, vmax, amax, space.resolution
 
     def _line(self, w, arm, path, kind, segs, acc):
         """A straight tool line through IK waypoints: with ``planner.cartesian`` = "ik:cartesian" the
@@ -813,11 +831,8 @@ class PR2Geometry:
             last = w
         b = self.bodies[body]
         names = list(self.robot.group(f"{arm}_arm").dof_names) + [f"{body}/{j}" for j in b.joint_names]
-        seg = self._segment(kind, f"{arm}_arm", [np.asarray(p, float)[:7] for p in path], _holding(world))
-        seg["joint_names"] = names
-        for pt, p in zip(seg["points"], path):
-            pt["positions"] = [float(v) for v in p]
-        seg.update(body=body, link=link)
+        seg = self._segment(kind, f"{arm}_arm", [np.asarray(p, float) for p in path], _holding(world))
+        seg.update(joint_names=names, body=body, link=link)
         segs.append(seg)
         return StepOutcome(True, last, segs)
 
