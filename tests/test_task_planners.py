@@ -79,6 +79,22 @@ def test_unified_planning_loads_without_configspace_and_scipy_stats():
     assert out.stdout.split() == ["False", "False", "True", "ConfigSpace.configuration_space"]
 
 
+def test_unified_planning_loads_without_networkx_and_gets_it_when_a_plan_graph_is_built():
+    """UP imports networkx for plan graphs (partial-order plans, causal graphs) we never build: a
+    stand-in answers while UP loads; a graph built later is a real networkx graph."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from interlayer_up.planner import _quiet_environment; _quiet_environment(); "
+            "print('networkx' in sys.modules); "
+            "from unified_planning.plans import PartialOrderPlan; import unified_planning.model.problem as p; "
+            "import networkx; plan = PartialOrderPlan({}); "
+            "print(isinstance(plan._graph, networkx.DiGraph), p.nx.DiGraph is networkx.DiGraph)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["False", "True", "True"]
+
+
 def test_a_settled_problem_computes_its_kind_once_and_hands_out_copies(monkeypatch):
     """UP recomputes Problem.kind at every access; a problem we no longer change computes it once,
     and each caller gets its own copy (UP's validator edits the kind it is given)."""
