@@ -95,6 +95,42 @@ def test_unified_planning_loads_without_networkx_and_gets_it_when_a_plan_graph_i
     assert out.stdout.split() == ["False", "True", "True"]
 
 
+UP_CONFIG = """
+import inspect, json, sys
+read = []
+findsource = inspect.findsource
+inspect.findsource = lambda obj: read.append(1) or findsource(obj)
+from interlayer_up.planner import _quiet_environment
+_quiet_environment()
+import unified_planning.engines.factory as factory
+shallow, stand_in = factory.get_possible_config_locations(), factory.inspect
+factory.inspect = inspect
+
+def frames():  # what UP's credits read: callers' files, functions and lines (both calls on one line)
+    ours, real = stand_in.stack(), inspect.stack()
+    return [(f.filename, f.function, f.lineno) for f in ours] == [(f.filename, f.function, f.lineno) for f in real]
+
+print(json.dumps({"sources_read": len(read), "same": shallow == factory.get_possible_config_locations() and frames(),
+                  "script": any(f.startswith(sys.argv[1]) for f in shallow)}))
+"""
+
+
+def test_unified_planning_finds_its_config_files_without_reading_its_callers_sources(tmp_path):
+    """UP's engine factory looks for up.ini in the folders of the outermost caller's file
+    (inspect.stack()): the same list, without reading every caller's source."""
+    import json
+    import subprocess
+    import sys
+
+    script = tmp_path / "deep" / "main.py"
+    script.parent.mkdir()
+    script.write_text(UP_CONFIG)
+    out = subprocess.run([sys.executable, str(script), str(tmp_path / "deep")], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout) == {"sources_read": 0, "same": True, "script": True}
+
+
 def test_a_settled_problem_computes_its_kind_once_and_hands_out_copies(monkeypatch):
     """UP recomputes Problem.kind at every access; a problem we no longer change computes it once,
     and each caller gets its own copy (UP's validator edits the kind it is given)."""
