@@ -63,36 +63,24 @@ def test_by_default_final_plans_are_replayed_with_the_cores_semantics(host):
     assert planner.validate_plan(model, model.init, plan[1:]) == check_plan(model, model.init, plan[1:]) != ""
 
 
-def test_unified_planning_loads_without_configspace_and_scipy_stats():
+def test_unified_planning_loads_without_configspace_scipy_stats_and_networkx():
     """UP imports ConfigSpace (and scipy.stats, most of its import time) only for engines' tuning
-    spaces: a stand-in answers while UP loads, and the real class comes when one is asked for."""
+    spaces, and networkx for plan graphs we never build: stand-ins answer while UP loads, and the real
+    classes come when one is asked for (a graph built later is a real networkx graph)."""
     import subprocess
     import sys
 
     code = ("import sys; from interlayer_up.planner import _quiet_environment; _quiet_environment(); "
-            "print('ConfigSpace' in sys.modules, 'scipy.stats' in sys.modules); "
+            "print('ConfigSpace' in sys.modules, 'scipy.stats' in sys.modules, 'networkx' in sys.modules); "
             "from unified_planning.engines.engine import Engine; from up_pyperplan.engine import EngineImpl; "
             "import ConfigSpace; print(isinstance(EngineImpl.get_configuration_space(), ConfigSpace.ConfigurationSpace), "
-            "type(Engine.get_configuration_space()).__module__)")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr
-    assert out.stdout.split() == ["False", "False", "True", "ConfigSpace.configuration_space"]
-
-
-def test_unified_planning_loads_without_networkx_and_gets_it_when_a_plan_graph_is_built():
-    """UP imports networkx for plan graphs (partial-order plans, causal graphs) we never build: a
-    stand-in answers while UP loads; a graph built later is a real networkx graph."""
-    import subprocess
-    import sys
-
-    code = ("import sys; from interlayer_up.planner import _quiet_environment; _quiet_environment(); "
-            "print('networkx' in sys.modules); "
+            "type(Engine.get_configuration_space()).__module__); "
             "from unified_planning.plans import PartialOrderPlan; import unified_planning.model.problem as p; "
             "import networkx; plan = PartialOrderPlan({}); "
             "print(isinstance(plan._graph, networkx.DiGraph), p.nx.DiGraph is networkx.DiGraph)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.split() == ["False", "True", "True"]
+    assert out.stdout.split() == ["False", "False", "False", "True", "ConfigSpace.configuration_space", "True", "True"]
 
 
 UP_CONFIG = """
