@@ -174,6 +174,24 @@ def test_the_timing_worker_answers_what_this_process_would_and_it_is_optional():
     assert "the trajectory timing process stopped (exit code -9)" in proc.stderr
 
 
+NO_WORKER = """
+import sys
+import numpy as np
+from interlayer_optim import timing
+
+sys.executable = "/nonexistent/python"
+timing.start_worker()  # cannot start: the path is timed here, as without a worker
+timing.prefetch([[0.0, 0.0], [1.0, 0.5]], 1.0, 2.0)
+print(timing._worker, timing.time_parameterize([[0.0, 0.0], [1.0, 0.5]], 1.0, 2.0)[-1]["time_from_start"] > 0)
+"""
+
+
+def test_a_timing_worker_that_cannot_start_changes_nothing():
+    proc = subprocess.run([sys.executable, "-c", NO_WORKER], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == ["None", "True"]
+
+
 PREFETCHED = """
 import json, sys
 from interlayer import api, cli

@@ -214,7 +214,10 @@ def start_worker() -> None:
     this process; if it fails, ``time_parameterize`` times in this process (the same result)."""
     global _worker
     if not _running():
-        _worker = _Worker()
+        try:
+            _worker = _Worker()
+        except OSError:  # e.g. no Python to start: timed in this process, as without a worker
+            _worker = None
 
 
 def prefetch(points, vmax, amax, step: float = 0.02) -> None:
