@@ -152,6 +152,7 @@ timing.prefetch(path, [1.0, 0.8], 2.0)
 first = timing.time_parameterize(path, [1.0, 0.8], 2.0)
 first[0]["positions"][0] = 99.0  # the caller's to change: a second call gets its own copy
 again = timing.time_parameterize(path, [1.0, 0.8], 2.0)
+timing.time_parameterize(path[:2], [1.0, 0.8], 2.0)  # not sent to the worker: timed here
 os.kill(timing._worker.proc.pid, signal.SIGKILL)  # gone: this process times it again itself
 with timing._worker.changed:
     timing._worker.changed.wait_for(lambda: timing._worker.dead)
@@ -169,7 +170,7 @@ def test_the_timing_worker_answers_what_this_process_would_and_it_is_optional():
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
     assert data["again"] == data["here"] and data["alone"] == data["here"]
-    assert data["jobs"] == 1  # the prefetched path, timed once
+    assert data["jobs"] == 1  # the prefetched path, timed once; the other one here
     assert data["toppra"]  # the last one, timed here after the worker was killed, and the log says so
     assert "the trajectory timing process stopped (exit code -9)" in proc.stderr
 

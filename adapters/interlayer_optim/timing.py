@@ -38,9 +38,9 @@ def time_parameterize(points, vmax, amax, step: float = 0.02) -> list[dict]:
     along the polyline ``points`` (an n x dof array), rest to rest, within ``|velocity| <= vmax`` and
     ``|acceleration| <= amax`` per joint. Kept in the user's cache (``interlayer.cache``): the same
     path timed again, e.g. by a run repeated with the same seed, needs no TOPP-RA (nor its import).
-    With a worker running (``start_worker``), the worker times it (or has already: ``prefetch``)."""
+    A path sent to the worker (``prefetch``) is the worker's to time: its answer is waited for."""
     job = _job(points, vmax, amax, step)
-    timed = _worker.result(job) if _running() else None
+    timed = _worker.result(job) if _running() and _worker.sent(job) else None
     return _cached(*job) if timed is None else timed
 
 
@@ -252,8 +252,12 @@ class _Worker:
             threading.Thread(target=target, name="timing-worker", daemon=True).start()
         atexit.register(self.stop)
 
+    def sent(self, job) -> bool:
+        with self.changed:
+            return _key(job) in self.ids
+
     def submit(self, job) -> int:
-        key = (job[0].shape, *(a.tobytes() for a in job[:3]), job[3])
+        key = _key(job)
         with self.changed:
             if key in self.ids:
                 return self.ids[key]
@@ -262,7 +266,7 @@ class _Worker:
         return n
 
     def result(self, job) -> list[dict] | None:
-        """The timed points, waiting for the worker; None if it cannot answer."""
+        """The timed points of a job sent, waiting for the worker; None if it cannot answer."""
         n = self.submit(job)
         with self.changed:
             self.changed.wait_for(lambda: n in self.answers or self.dead)
@@ -311,6 +315,10 @@ class _Worker:
         if self.proc.poll() is None:
             self.proc.kill()
             self.proc.wait()
+
+
+def _key(job) -> tuple:
+    return (job[0].shape, *(a.tobytes() for a in job[:3]), job[3])
 
 
 def _frame(message) -> bytes:
