@@ -72,3 +72,18 @@ def test_the_plugin_api_documents_everything_it_exports():
 def test_builtin_domains_declare_their_drawing(host):
     assert host["domains"].get("gripper2d").drawing == "interlayer_gripper2d.draw"
     assert host["domains"].get("pr2").drawing == "interlayer_manip.draw"
+
+
+def test_discovery_reads_each_distributions_metadata_once(monkeypatch):
+    """Every ``Distribution.name`` / ``.version`` parses the distribution's metadata file again: the
+    plugin host reads each once (start-up time)."""
+    import importlib.metadata as md
+
+    read = []
+    for kind in {type(ep.dist) for ep in md.entry_points(group="interlayer.plugins")}:  # the classes in use
+        metadata = kind.metadata.fget
+        monkeypatch.setattr(kind, "metadata", property(lambda dist, get=metadata: read.append(dist) or get(dist)))
+    host = PluginHost()
+    parsed = list(read)
+    assert len(host.dists) > 1 and host.dists["gripper2d"] == ("interlayer", md.version("interlayer"))
+    assert len(parsed) == len({id(d) for d in parsed}) == len({ep.dist.name for ep in md.entry_points(group="interlayer.plugins")})

@@ -63,20 +63,60 @@ def test_by_default_final_plans_are_replayed_with_the_cores_semantics(host):
     assert planner.validate_plan(model, model.init, plan[1:]) == check_plan(model, model.init, plan[1:]) != ""
 
 
-def test_unified_planning_loads_without_configspace_and_scipy_stats():
+def test_unified_planning_loads_without_configspace_scipy_stats_and_networkx():
     """UP imports ConfigSpace (and scipy.stats, most of its import time) only for engines' tuning
-    spaces: a stand-in answers while UP loads, and the real class comes when one is asked for."""
+    spaces, and networkx for plan graphs we never build: stand-ins answer while UP loads, and the real
+    classes come when one is asked for (a graph built later is a real networkx graph)."""
     import subprocess
     import sys
 
     code = ("import sys; from interlayer_up.planner import _quiet_environment; _quiet_environment(); "
-            "print('ConfigSpace' in sys.modules, 'scipy.stats' in sys.modules); "
+            "print('ConfigSpace' in sys.modules, 'scipy.stats' in sys.modules, 'networkx' in sys.modules); "
             "from unified_planning.engines.engine import Engine; from up_pyperplan.engine import EngineImpl; "
             "import ConfigSpace; print(isinstance(EngineImpl.get_configuration_space(), ConfigSpace.ConfigurationSpace), "
-            "type(Engine.get_configuration_space()).__module__)")
+            "type(Engine.get_configuration_space()).__module__); "
+            "from unified_planning.plans import PartialOrderPlan; import unified_planning.model.problem as p; "
+            "import networkx; plan = PartialOrderPlan({}); "
+            "print(isinstance(plan._graph, networkx.DiGraph), p.nx.DiGraph is networkx.DiGraph)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.split() == ["False", "False", "True", "ConfigSpace.configuration_space"]
+    assert out.stdout.split() == ["False", "False", "False", "True", "ConfigSpace.configuration_space", "True", "True"]
+
+
+UP_CONFIG = """
+import inspect, json, sys
+read = []
+findsource = inspect.findsource
+inspect.findsource = lambda obj: read.append(1) or findsource(obj)
+from interlayer_up.planner import _quiet_environment
+_quiet_environment()
+import unified_planning.engines.factory as factory
+shallow, stand_in = factory.get_possible_config_locations(), factory.inspect
+factory.inspect = inspect
+
+def frames():  # what UP's credits read: callers' files, functions and lines (both calls on one line)
+    ours, real = stand_in.stack(), inspect.stack()
+    return [(f.filename, f.function, f.lineno) for f in ours] == [(f.filename, f.function, f.lineno) for f in real]
+
+print(json.dumps({"sources_read": len(read), "same": shallow == factory.get_possible_config_locations() and frames(),
+                  "script": any(f.startswith(sys.argv[1]) for f in shallow)}))
+"""
+
+
+def test_unified_planning_finds_its_config_files_without_reading_its_callers_sources(tmp_path):
+    """UP's engine factory looks for up.ini in the folders of the outermost caller's file
+    (inspect.stack()): the same list, without reading every caller's source."""
+    import json
+    import subprocess
+    import sys
+
+    script = tmp_path / "deep" / "main.py"
+    script.parent.mkdir()
+    script.write_text(UP_CONFIG)
+    out = subprocess.run([sys.executable, str(script), str(tmp_path / "deep")], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout) == {"sources_read": 0, "same": True, "script": True}
 
 
 def test_a_settled_problem_computes_its_kind_once_and_hands_out_copies(monkeypatch):

@@ -139,6 +139,95 @@ def test_timing_solves_one_topp_ra_problem_per_piece(monkeypatch):
     assert [p["positions"] for p in points] == path.tolist()
 
 
+WORKER_TIMES = """
+import json, os, signal, sys
+import numpy as np
+from interlayer_optim import timing
+
+path = np.array([[0.0, 0.0], [0.5, 0.1], [1.0, 0.15], [1.0, 0.6]])
+here = timing._time_parameterize(*timing._job(path, [1.0, 0.8], 2.0, 0.02))  # in this process (imports toppra)
+del sys.modules["toppra"]
+timing.start_worker()
+timing.prefetch(path, [1.0, 0.8], 2.0)
+first = timing.time_parameterize(path, [1.0, 0.8], 2.0)
+first[0]["positions"][0] = 99.0  # the caller's to change: a second call gets its own copy
+again = timing.time_parameterize(path, [1.0, 0.8], 2.0)
+timing.time_parameterize(path[:2], [1.0, 0.8], 2.0)  # not sent to the worker: timed here
+os.kill(timing._worker.proc.pid, signal.SIGKILL)  # gone: this process times it again itself
+with timing._worker.changed:
+    timing._worker.changed.wait_for(lambda: timing._worker.dead)
+alone = timing.time_parameterize(path, [1.0, 0.8], 2.0)
+print(json.dumps({"here": here, "again": again, "alone": alone, "jobs": len(timing._worker.ids),
+                  "toppra": "toppra" in sys.modules}))
+"""
+
+
+def test_the_timing_worker_answers_what_this_process_would_and_it_is_optional():
+    import os
+
+    proc = subprocess.run([sys.executable, "-c", WORKER_TIMES], capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "INTERLAYER_CACHE_DIR": "off"})
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data["again"] == data["here"] and data["alone"] == data["here"]
+    assert data["jobs"] == 1  # the prefetched path, timed once; the other one here
+    assert data["toppra"]  # the last one, timed here after the worker was killed, and the log says so
+    assert "the trajectory timing process stopped (exit code -9)" in proc.stderr
+
+
+NO_WORKER = """
+import sys
+import numpy as np
+from interlayer_optim import timing
+
+sys.executable = "/nonexistent/python"
+timing.start_worker()  # cannot start: the path is timed here, as without a worker
+timing.prefetch([[0.0, 0.0], [1.0, 0.5]], 1.0, 2.0)
+print(timing._worker, timing.time_parameterize([[0.0, 0.0], [1.0, 0.5]], 1.0, 2.0)[-1]["time_from_start"] > 0)
+"""
+
+
+def test_a_timing_worker_that_cannot_start_changes_nothing():
+    proc = subprocess.run([sys.executable, "-c", NO_WORKER], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == ["None", "True"]
+
+
+PREFETCHED = """
+import json, sys
+from interlayer import api, cli
+from interlayer_optim import timing
+
+seen = {}
+write = api.write_outputs
+
+def write_outputs(result, out):  # what the run sent the worker while it planned, and at the export
+    seen["sent"] = len(timing._worker.ids)
+    seen["segments"] = sum(1 for o in result.refinement for s in o.segments if "points" in s)
+    write(result, out)
+    seen["after"] = len(timing._worker.ids)
+
+api.write_outputs = write_outputs
+code = cli.main(["plan", sys.argv[1], "-q", "--out", sys.argv[2]])
+print(json.dumps({**seen, "code": code, "toppra": "toppra" in sys.modules}))
+"""
+
+
+def test_a_run_that_will_be_written_times_its_segments_while_it_plans(tmp_path):
+    import os
+
+    out = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-c", PREFETCHED, str(ROOT / "examples" / "pr2_pick.toml"), str(out)],
+                          capture_output=True, text=True, timeout=600, cwd=ROOT,
+                          env={**os.environ, "INTERLAYER_CACHE_DIR": "off"})
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout.splitlines()[-1])
+    assert data["code"] == 0 and data["segments"] > 0 and data["sent"] >= data["segments"]
+    assert data["after"] == data["sent"]  # every written segment had been sent: nothing new at the export
+    assert not data["toppra"]  # this process never imported it
+    assert (out / "trajectory.json").exists()
+
+
 # -- the whole wait, in result.json and the bench database ---------------------------------------------
 
 def test_result_json_records_the_whole_wait_and_its_parts(pr2_run):

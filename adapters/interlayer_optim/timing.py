@@ -9,10 +9,23 @@ controller can follow (between two points, the average speed and the change of v
 stay within the limits, as they do everywhere along the timing). Where
 TOPP-RA reports a numerical failure, that piece is timed chord by chord with the time-optimal
 rest-to-rest trapezoid instead (exact for straight lines, slower elsewhere).
+
+A run that will write its trajectory can time it while it plans (``start_worker``, then ``prefetch``
+each path as it is made): a worker process imports toppra and times the paths on another core, and
+``time_parameterize`` takes its answers. Same code, same inputs: the same timing as in this process.
 """
 from __future__ import annotations
 
+import atexit
 import functools
+import logging
+import os
+import pickle
+import queue
+import struct
+import subprocess
+import sys
+import threading
 
 import numpy as np
 
@@ -24,13 +37,24 @@ def time_parameterize(points, vmax, amax, step: float = 0.02) -> list[dict]:
     """``trajectory_msgs``-like points ``{positions, velocities, accelerations, time_from_start}``
     along the polyline ``points`` (an n x dof array), rest to rest, within ``|velocity| <= vmax`` and
     ``|acceleration| <= amax`` per joint. Kept in the user's cache (``interlayer.cache``): the same
-    path timed again, e.g. by a run repeated with the same seed, needs no TOPP-RA (nor its import)."""
-    from interlayer import cache
+    path timed again, e.g. by a run repeated with the same seed, needs no TOPP-RA (nor its import).
+    A path sent to the worker (``prefetch``) is the worker's to time: its answer is waited for."""
+    job = _job(points, vmax, amax, step)
+    timed = _worker.result(job) if _running() and _worker.sent(job) else None
+    return _cached(*job) if timed is None else timed
 
+
+def _job(points, vmax, amax, step) -> tuple:
     P = np.asarray(points, float)
     dof = P.shape[1]
     vmax, amax = np.broadcast_to(np.asarray(vmax, float), (dof,)), np.broadcast_to(np.asarray(amax, float), (dof,))
-    key = cache.digest(_code_version(), P.shape, P.tobytes(), vmax.tobytes(), amax.tobytes(), float(step))
+    return P, vmax, amax, float(step)
+
+
+def _cached(P, vmax, amax, step) -> list[dict]:
+    from interlayer import cache
+
+    key = cache.digest(_code_version(), P.shape, P.tobytes(), vmax.tobytes(), amax.tobytes(), step)
     timed = cache.load("timing", key)
     if timed is None:
         timed = _time_parameterize(P, vmax, amax, step)
@@ -180,3 +204,147 @@ def _dense(P, step):
         out += [a + (b - a) * k / n for k in range(1, n + 1)]
         vertices.append(len(out) - 1)
     return np.array(out), vertices
+
+
+# -- the worker: timing on another core while the run plans ------------------------------------------
+
+def start_worker() -> None:
+    """Start (once per process) a worker process that imports toppra now and times the paths ``prefetch``
+    sends it: the trajectory's timing then overlaps planning instead of following it. It ends with
+    this process; if it fails, ``time_parameterize`` times in this process (the same result)."""
+    global _worker
+    if not _running():
+        try:
+            _worker = _Worker()
+        except OSError:  # e.g. no Python to start: timed in this process, as without a worker
+            _worker = None
+
+
+def prefetch(points, vmax, amax, step: float = 0.02) -> None:
+    """Have the worker time this path now (``time_parameterize``'s arguments); nothing without a worker."""
+    if _running():
+        _worker.submit(_job(points, vmax, amax, step))
+
+
+_worker = None
+
+
+def _running() -> bool:
+    return _worker is not None and _worker.pid == os.getpid() and not _worker.dead  # a forked child: not its own
+
+
+class _Worker:
+    """The caller's side: jobs go down the worker's stdin from a writer thread (planning never waits for
+    the pipe), answers come up its stdout to a reader thread; an answer is found by the path's content
+    (the same path made twice is timed once) and unpacked afresh for each caller, who may change it."""
+
+    def __init__(self):
+        code = f"import sys; sys.path[:] = {sys.path!r}; from interlayer_optim.timing import _serve; _serve()"
+        # Its own session: Ctrl-C reaches only this process, which may still need the worker to write the run.
+        self.proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     stderr=subprocess.DEVNULL, start_new_session=True)
+        self.pid, self.dead, self.stopped = os.getpid(), False, False  # stopped: by this process
+        self.ids: dict = {}  # job key -> its number
+        self.answers: dict = {}  # number -> the pickled timed points, or None (the worker failed on it)
+        self.changed = threading.Condition()
+        self.outbox = queue.SimpleQueue()
+        for target in (self._write, self._read):
+            threading.Thread(target=target, name="timing-worker", daemon=True).start()
+        atexit.register(self.stop)
+
+    def sent(self, job) -> bool:
+        with self.changed:
+            return _key(job) in self.ids
+
+    def submit(self, job) -> int:
+        key = _key(job)
+        with self.changed:
+            if key in self.ids:
+                return self.ids[key]
+            n = self.ids[key] = len(self.ids)
+        self.outbox.put(_frame((n, job)))
+        return n
+
+    def result(self, job) -> list[dict] | None:
+        """The timed points of a job sent, waiting for the worker; None if it cannot answer."""
+        n = self.submit(job)
+        with self.changed:
+            self.changed.wait_for(lambda: n in self.answers or self.dead)
+            answer = self.answers.get(n)
+        return None if answer is None else pickle.loads(answer)
+
+    def _write(self) -> None:
+        while (data := self.outbox.get()) is not None:
+            try:
+                self.proc.stdin.write(data)
+                self.proc.stdin.flush()
+            except (OSError, ValueError):  # it stopped
+                break
+        self._failed()
+
+    def _read(self) -> None:
+        try:
+            while (answer := _receive(self.proc.stdout)) is not None:
+                n, timed = answer
+                with self.changed:
+                    self.answers[n] = timed
+                    self.changed.notify_all()
+        except (OSError, ValueError, EOFError, pickle.UnpicklingError):
+            pass
+        if not self.stopped:
+            try:
+                code = self.proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                code = None
+            logging.getLogger("interlayer").warning(
+                "the trajectory timing process stopped (exit code %s); this process times the trajectory itself.", code)
+        self._failed()
+
+    def _failed(self) -> None:
+        with self.changed:
+            self.dead = True
+            self.changed.notify_all()
+
+    def stop(self) -> None:
+        """Nothing it still has to do is needed once this process ends: it is killed, not waited for."""
+        if os.getpid() != self.pid:  # a forked child leaving: the worker is its parent's
+            return
+        self.stopped = True
+        self._failed()
+        self.outbox.put(None)
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+
+
+def _key(job) -> tuple:
+    return (job[0].shape, *(a.tobytes() for a in job[:3]), job[3])
+
+
+def _frame(message) -> bytes:
+    data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+    return struct.pack("<Q", len(data)) + data
+
+
+def _receive(stream):
+    """The next message, or None at the end of the stream."""
+    head = stream.read(8)
+    if len(head) < 8:
+        return None
+    return pickle.loads(stream.read(struct.unpack("<Q", head)[0]))
+
+
+def _serve() -> None:
+    """The worker process: import toppra at once, then time each job (through the cache, as this
+    process would) until its input ends. Its stdout carries only answers: stray prints go nowhere."""
+    out = os.fdopen(os.dup(1), "wb")
+    os.dup2(os.open(os.devnull, os.O_WRONLY), 1)
+    _toppra_module()
+    while (job := _receive(sys.stdin.buffer)) is not None:
+        n, args = job
+        try:
+            timed = pickle.dumps(_cached(*args), protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception:  # answered None: the caller times it itself, and meets the error there
+            timed = None
+        out.write(_frame((n, timed)))
+        out.flush()

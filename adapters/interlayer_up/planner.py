@@ -4,6 +4,7 @@ from __future__ import annotations
 import functools
 import importlib
 import importlib.util
+import inspect
 import logging
 import multiprocessing
 import subprocess
@@ -48,9 +49,10 @@ def _quiet_environment():
 
 
 def _import_up():
-    """Import Unified-Planning and its engines without ConfigSpace: UP 1.3 imports it (and with it
-    scipy.stats, most of UP's import time) only to describe engines' tuning parameters, which we
-    never ask for. While UP loads, a stand-in module answers; it imports the real one on first use."""
+    """Import Unified-Planning and its engines without ConfigSpace and networkx: UP 1.3 imports ConfigSpace
+    (and with it scipy.stats, most of UP's import time) only to describe engines' tuning parameters, which
+    we never ask for, and networkx (a third of the rest) for plan graphs we never build. While UP loads,
+    stand-in modules answer; each imports the real one on first use."""
     if "unified_planning.shortcuts" in sys.modules:
         return
     with _setup_lock:
@@ -58,37 +60,61 @@ def _import_up():
             _import_up_without_configspace()
 
 
+# module -> the classes UP's modules name while they load (bound by name, or in annotations)
+_STAND_INS = {"ConfigSpace": ("ConfigurationSpace",), "networkx": ("DiGraph",)}
+
+
 def _import_up_without_configspace():
-    if "ConfigSpace" in sys.modules:  # already paid for
-        import unified_planning.shortcuts  # noqa: F401
-        return
-    stub = types.ModuleType("ConfigSpace")
-
-    def real():
-        if sys.modules.get("ConfigSpace") is stub:
-            del sys.modules["ConfigSpace"]
-        return importlib.import_module("ConfigSpace")
-
-    class ConfigurationSpace:  # what UP's modules import by name: the real class when called
-        def __new__(cls, *args, **kwargs):
-            return real().ConfigurationSpace(*args, **kwargs)
-
-    def attribute(name):  # any other name: the real module's (not dunders: the import machinery asks for those)
-        if name.startswith("__"):
-            raise AttributeError(name)
-        return getattr(real(), name)
-
-    stub.ConfigurationSpace = ConfigurationSpace
-    stub.__getattr__ = attribute
-    sys.modules["ConfigSpace"] = stub
+    stubs = {name: _stand_in(name, classes) for name, classes in _STAND_INS.items() if name not in sys.modules}
+    sys.modules.update(stubs)
     try:
+        import unified_planning.engines.factory as factory
         import unified_planning.shortcuts  # noqa: F401
         from unified_planning.environment import get_environment
 
+        factory.inspect = _ShallowInspect("inspect")
         get_environment()  # its engine factory imports every installed engine (up_pyperplan too)
     finally:
-        if sys.modules.get("ConfigSpace") is stub:
-            del sys.modules["ConfigSpace"]
+        for name, stub in stubs.items():
+            if sys.modules.get(name) is stub:
+                del sys.modules[name]
+        if "networkx" in stubs:  # only annotations kept the stand-in class: later uses get the real one
+            del stubs["networkx"].DiGraph
+
+
+class _ShallowInspect(types.ModuleType):
+    """``inspect`` for UP's engine factory, which calls ``inspect.stack()`` to find its callers' file
+    names (the outermost one's folders are searched for up.ini), function names and line numbers:
+    the same frames without their source lines, which it never reads (reading them, and finding each
+    frame's module among all loaded ones, took 35 ms of every run's start)."""
+
+    def __getattr__(self, name):
+        return getattr(inspect, name)
+
+    @staticmethod
+    def stack(context=1):
+        return inspect.getouterframes(sys._getframe(1), 0)
+
+
+def _stand_in(name: str, classes) -> types.ModuleType:
+    """A module for ``name`` whose attributes are the real module's, imported on first use; ``classes``
+    are stand-in classes whose instances are the real classes' (a name bound while UP loads)."""
+    stub = types.ModuleType(name)
+
+    def real():
+        if sys.modules.get(name) is stub:
+            del sys.modules[name]
+        return importlib.import_module(name)
+
+    def attribute(attr):  # not dunders: the import machinery asks for those
+        if attr.startswith("__"):
+            raise AttributeError(attr)
+        return getattr(real(), attr)
+
+    for cls in classes:
+        setattr(stub, cls, type(cls, (), {"__new__": lambda _, *args, _cls=cls, **kw: getattr(real(), _cls)(*args, **kw)}))
+    stub.__getattr__ = attribute
+    return stub
 
 
 @dataclass

@@ -52,7 +52,8 @@ def resolve_config(source, overrides=None) -> dict:
     return config
 
 
-GEOMETRY_METHODS = ("initial_world", "refine_step", "snapshot", "trajectory_json", "validate", "scene_issues")
+GEOMETRY_METHODS = ("initial_world", "refine_step", "snapshot", "trajectory_json", "validate", "scene_issues",
+                    "prepare_export")
 
 
 def build_problem(host: PluginHost, config: dict):
@@ -226,7 +227,7 @@ def prepare(source, overrides=None, host: PluginHost | None = None) -> Prepared:
 
 
 def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), pddl_dir=None,
-          origin: float | None = None, on_stuck=None) -> Result:
+          origin: float | None = None, on_stuck=None, export: bool = False) -> Result:
     """Solve a problem: ``source`` is a config path, a problem file, an output folder or a dict;
     ``overrides`` a list of ``"section.key=value"`` strings or a dict ``{"section.key": value}``.
     ``pddl_dir``: write every task-planner call's problem there as PDDL. ``listeners``: functions
@@ -235,7 +236,9 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
     result's wall time starts (``time.perf_counter()`` clock; default: now). ``on_stuck(result)``: called
     from another thread with the run so far (status "timeout") when a plugin call overruns the time
     limit and cannot be stopped (stuck in C code or a sleep); the CLI writes it and ends the process.
-    Without it such a run ends when the call returns.
+    Without it such a run ends when the call returns. ``export``: the result will be written
+    (``write_outputs``): a geometry with ``prepare_export()`` is told before planning starts, so that
+    its trajectory's export can overlap planning (e.g. the PR2's timing, in a worker process).
 
     Raises ``UserError`` for bad input, ``PluginFault`` for an exception in a plugin's code and
     ``Interrupted`` (a ``KeyboardInterrupt`` whose ``result`` holds the run so far) on Ctrl-C."""
@@ -247,6 +250,8 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
     if errors:  # e.g. two objects in one another: no plan can start there
         more = f" ({len(errors) - 1} more: see 'interlayer check')" if len(errors) > 1 else ""
         raise UserError(errors[0][:-1] + more + ".")
+    if export and hasattr(problem.geometry, "prepare_export"):  # as early as can be: it overlaps the rest
+        problem.geometry.prepare_export()
     run.task.pddl_dir = pddl_dir
     p = config["planner"]
     settings = LoopSettings(time_limit=float(p["time_limit"]), max_traj_count=p["max_traj_count"],

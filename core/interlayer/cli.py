@@ -208,7 +208,7 @@ def cmd_plan(args) -> int:
     try:
         try:
             result = api.solve(args.source, overrides=args.set, listeners=listeners, pddl_dir=pddl_dir,
-                               origin=process_start(), on_stuck=stuck)
+                               origin=process_start(), on_stuck=stuck, export=bool(args.out))
         except Interrupted as stop:  # keep what was done: the trace so far explains the run
             stopped, when = stop.result, ""
         else:

@@ -111,13 +111,18 @@ class PluginHost:
         self.dists: dict[str, tuple[str, str]] = {}
         self.broken: dict[str, str] = {}
         if load_entry_points:
+            found = importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)
+            dists = {}  # each distribution's (name, version), read once: .name and .version each parse its metadata
+            for ep in found:
+                if ep.dist is not None and id(ep.dist) not in dists:
+                    meta = ep.dist.metadata
+                    dists[id(ep.dist)] = (meta["Name"], meta["Version"])
             # The built-in plugins first, so their component names cannot be taken by another.
-            eps = sorted(importlib.metadata.entry_points(group=ENTRY_POINT_GROUP),
-                         key=lambda ep: (ep.dist is None or ep.dist.name != BUILTIN_DISTRIBUTION))
+            eps = sorted(found, key=lambda ep: dists.get(id(ep.dist), ("?",))[0] != BUILTIN_DISTRIBUTION)
             for ep in eps:
                 if self.pm.get_plugin(ep.name) is not None or ep.name in self.broken:
                     continue
-                dist = (ep.dist.name, ep.dist.version) if ep.dist else ("?", "?")
+                dist = dists.get(id(ep.dist), ("?", "?"))
                 try:
                     module = ep.load()
                 except Exception as exc:  # a broken third-party plugin must not break the CLI

@@ -74,7 +74,9 @@ class Geometry(Protocol):
     ``validate(plan, trajectory) -> list of violations`` (used by ``interlayer validate``) and
     ``moved(before, after) -> set of object names`` (the objects whose pose differs between two
     worlds, and ``ROBOT_MOVED`` when the robot's own configuration does: TryRefine then skips
-    backtracking that cannot move an obstruction, see ``Refiner``). A geometry with a ``cartesian``
+    backtracking that cannot move an obstruction, see ``Refiner``) and ``prepare_export()`` (called
+    before planning when the run will be written: start what ``trajectory_json`` needs, so that it
+    overlaps planning). A geometry with a ``cartesian``
     attribute gets the motion planner named by ``planner.cartesian`` there, for its straight-line
     end-effector segments."""
 

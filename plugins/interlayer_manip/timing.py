@@ -7,6 +7,7 @@ import numpy as np
 from .params import TIMING
 from .state import FOLLOWS, wrap
 
+
 class Output:
     def limits(self, group) -> tuple[np.ndarray, np.ndarray]:
         """(velocity, acceleration) limits per joint of ``group`` that trajectories respect."""
@@ -20,13 +21,35 @@ class Output:
         """A motion segment; its points get their timing when the plan is written (``timed``)."""
         names = ["x", "y", "theta"] if group == "base" else list(self.robot.group(group).dof_names)
         points = [{"positions": [float(v) for v in p]} for p in path]
-        return {"kind": kind, "group": group, "joint_names": names, "points": points, "holding": holding}
+        segment = {"kind": kind, "group": group, "joint_names": names, "points": points, "holding": holding}
+        if self._exporting:  # timed by the worker while the run goes on
+            from interlayer_optim.timing import prefetch
+
+            prefetch(*self._timing_args(segment))
+        return segment
+
+    def prepare_export(self):
+        """The run's trajectory will be written: a worker process times segments as they are made."""
+        from interlayer_optim.timing import start_worker
+
+        start_worker()
+        self._exporting = True
 
     def timed(self, segment) -> dict:
         """``segment`` with TOPP-RA timing: positions (densified to the planning resolution),
         velocities, accelerations and time_from_start within :meth:`limits`."""
         from interlayer_optim.timing import time_parameterize
 
+        path, vmax, amax, step = self._timing_args(segment)
+        with self.stats.timer("timing"):
+            points = time_parameterize(path, vmax, amax, step=step)
+        if segment["group"] == "base":
+            for p in points:
+                p["positions"][2] = wrap(p["positions"][2])
+        return {**segment, "points": points}
+
+    def _timing_args(self, segment):
+        """What :meth:`timed` asks TOPP-RA: the path, the velocity and acceleration limits, the step."""
         group = segment["group"]
         space = self.base_space if group == "base" else self.arm_space[self.robot.arm_of(group)]
         path = [np.asarray(p["positions"], float) for p in segment["points"]]
@@ -38,12 +61,7 @@ class Output:
         extra = len(path[0]) - len(vmax)
         if extra > 0:  # a pull: the articulated body's joints follow the hand; the arm's limits bind
             vmax, amax = np.append(vmax, [FOLLOWS] * extra), np.append(amax, [FOLLOWS] * extra)
-        with self.stats.timer("timing"):
-            points = time_parameterize(path, vmax, amax, step=space.resolution)
-        if group == "base":
-            for p in points:
-                p["positions"][2] = wrap(p["positions"][2])
-        return {**segment, "points": points}
+        return path, vmax, amax, space.resolution
 
     def trajectory_json(self, plan, outcomes) -> dict:
         return {"domain": "pr2", "frame": "world, metres / radians; base joints x, y, theta",

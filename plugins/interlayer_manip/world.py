@@ -63,6 +63,7 @@ class ManipulationGeometry(MotionQueries, Reach, Refiners, Articulated, Output):
         self.bodies = {}  # articulated environment bodies (interlayer_pinocchio.ArticulatedBody): add_body
         self._initial_joints, self._initial_riders = {}, {}
         self._synced = None
+        self._exporting = False  # prepare_export: segments are timed as they are made
         lo, hi = base_limits(layout)
         self.base_space = ConfigSpace("se2", (lo[0], hi[0], -math.pi), (lo[1], hi[1], math.pi), (False, False, True), RES_BASE)
         # Arm spaces: the continuous forearm / wrist roll joints are treated as bounded to [-pi, pi]
