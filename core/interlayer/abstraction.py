@@ -46,6 +46,7 @@ class TaskModel:
     reference_of: dict  # (skolem predicate, args...) -> reference
     uniformity: list = field(default_factory=list)  # violations of Def. 1 (empty: uniform)
     parameter_roles: dict = field(default_factory=dict)  # action -> {var: role}
+    labels: dict = field(default_factory=dict)  # symbol -> the name a person reads (objects and their references)
     _by_type: dict = field(default_factory=dict)
 
     @property
@@ -132,6 +133,7 @@ def abstract(problem: Problem) -> TaskModel:
 
     # References: one per Skolem-function application over the problem's objects (App. A).
     references, reference_of, static = {}, {}, set()
+    labels = dict(problem.labels)
     skolem_preds = {}
     for sk in spec.skolems:
         skolem_preds[sk.predicate] = sk
@@ -144,6 +146,8 @@ def abstract(problem: Problem) -> TaskModel:
             references[ref] = (sk.name, combo)
             reference_of[(sk.predicate, *combo)] = ref
             static.add((sk.predicate, ref, *combo))
+            if any(c in problem.labels for c in combo):
+                labels[ref] = f"{sk.name}({', '.join(problem.labels.get(c, c) for c in combo)})"
 
     full_actions, task_actions, roles = {}, {}, {}
     occurrences: dict[str, set] = {}
@@ -214,6 +218,7 @@ def abstract(problem: Problem) -> TaskModel:
         reference_of=reference_of,
         uniformity=uniformity,
         parameter_roles=roles,
+        labels=labels,
     )
 
 

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from . import deadline as deadlines, logic
 from .abstraction import TaskModel
 from .domain import GroundStep
+from .names import relabel
 from .deadline import Deadline, DeadlineExceeded
 from .refine import EpochState, Infeasible, PoseGenerator, Refinement, Refiner, drawn_within, stable_seed
 from .result import Result
@@ -246,6 +247,7 @@ class InterfaceLayer:
                                        f"did not return: the process was ended", None)
 
     def _result(self, status, reason, refinement) -> Result:
+        reason = relabel(reason, getattr(self.model, "labels", None))  # a domain's sentence, in the file's names
         self.stats.times["total"] = time.perf_counter() - self.deadline.start
         accounted = sum(v for k, v in self.stats.times.items() if k not in ("total", "interface"))
         self.stats.times["interface"] = max(0.0, self.stats.times["total"] - accounted)

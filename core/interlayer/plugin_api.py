@@ -11,7 +11,8 @@ Domains
     default pose generator) and a ``Problem`` per instance, whose ``geometry`` implements
     ``Geometry``: ``refine_step`` returns a ``StepOutcome``, ok or with a ``Failure(kind,
     objects)`` whose ``kind`` must be a key of the action's ``learn`` to teach the task planner.
-    The domain's ``drawing`` (``Drawing``) lets visualizers draw it.
+    The domain's ``drawing`` (``Drawing``) lets visualizers draw it. Names read from a user's file
+    become symbols through ``Names`` (``Problem.labels`` shows them again).
 Pose generators
     ``fn(problem, step, world, rng) -> iterable of Candidate``; raise ``Infeasible`` when a
     reference can never be instantiated. A generator that needs state between calls subclasses
@@ -37,6 +38,7 @@ from .domain import ActionSpec, DomainSpec, GroundStep, Problem, Skolem
 from .errors import UserError
 from .faults import PluginFault
 from .logic import negated
+from .names import Names
 from .motion import ConfigSpace, InterpolatingPlanner, MotionPlan, MotionPlanner, MotionQuery, points_valid, segment_valid
 from .planning import TaskPlanner, TaskPlanResult
 from .plugins import Registry
@@ -62,5 +64,5 @@ __all__ = [
     "DomainSpec", "ActionSpec", "Skolem", "Problem", "GroundStep", "TaskModel",
     "Geometry", "Candidate", "StepOutcome", "Failure", "Infeasible", "EpochState", "ROBOT_MOVED", "Drawing",
     "ConfigSpace", "MotionQuery", "MotionPlan", "MotionPlanner", "InterpolatingPlanner", "segment_valid", "points_valid",
-    "TaskPlanner", "TaskPlanResult", "translate_by_templates", "negated",
+    "TaskPlanner", "TaskPlanResult", "translate_by_templates", "negated", "Names",
 ]

@@ -1,0 +1,122 @@
+"""Names are data (interlayer.names): any string a user's file gives a body or region names it. The
+task level sees safe symbols; whatever a person reads shows the file's names."""
+import copy
+import json
+
+import pytest
+from interlayer import api
+from interlayer.names import Names, relabel, step_text
+
+from test_pbjson import SHARED, needs_shared, scene
+
+
+def rename(data, new):
+    """A pybullet-planning file with every body and region renamed by ``new`` (old name -> new name)."""
+    data = copy.deepcopy(data)
+    task = data["task"]
+    for b in data["bodies"]:
+        b["name"] = new(b["name"])
+    for r in task.get("regions") or []:
+        r["name"] = new(r["name"])
+    for key in ("object_names", "table_names", "sink_names", "stove_names", "floor_object_names", "goal_cleaned", "goal_cooked"):
+        if task.get(key):
+            task[key] = [new(n) for n in task[key]]
+    if isinstance(task.get("goal_holding"), str):
+        task["goal_holding"] = new(task["goal_holding"])
+    elif isinstance(task.get("goal_holding"), list):
+        task["goal_holding"] = [new(n) for n in task["goal_holding"]]
+    for key in ("goal_regions", "goal_stackings", "goal_poses"):
+        task[key] = {new(o): new(v) if isinstance(v, str) and v != "initial" else v for o, v in (task.get(key) or {}).items()}
+    return data
+
+
+def test_a_symbol_is_the_name_when_safe_and_free_else_a_clean_unique_one():
+    names = Names(reserved=["On", "obj"], prefixes=["grasp_"])
+    arm = names.add("left")
+    got = {n: names.add(n) for n in ["left", "table 1", "On", "on", "(", "and", "Either", "obj", "grasp_box", "", "a-b"]}
+    assert arm == "left" and got["on"] == "on" and got["a-b"] == "a-b"  # safe names keep themselves
+    assert got["left"] != "left" and got["On"] != "On" and got["obj"] != "obj"  # the arm's, a predicate's, a type's
+    assert got["and"].lower() != "and" and got["Either"].lower() != "either"  # PDDL keywords, in any case
+    assert not got["grasp_box"].startswith("grasp_")  # would read as a reference
+    symbols = [arm, *got.values()]
+    assert len(set(symbols)) == len(symbols)
+    assert all(s[0].isalpha() and all(c.isalnum() or c in "_-" for c in s) for s in symbols)
+    assert {names.label(s) for s in got.values()} == set(got) and names.label(arm) == "left"
+    assert names.labels[got["table 1"]] == "table 1" and "on" not in names.labels  # labels: where they differ
+    labels = {got["table 1"]: "table 1", got["left"]: "left"}
+    assert step_text({"action": "place", "args": [got["left"], got["table 1"]]}, labels) == "place(left, table 1)"
+    assert relabel(f"(On {got['left']} {got['table 1']}), (not (On a b))", labels) == "(On left table 1), (not (On a b))"
+
+
+def _solve(tmp_path, data, name):
+    path = tmp_path / f"{name}.json"
+    path.write_text(json.dumps(data))
+    return api.solve(str(path), ["planner.seed=0", "planner.time_limit=120"])
+
+
+def _as_named(result):
+    """The plan in the names a person reads."""
+    return [step_text(s, result.to_json()["names"]) for s in result.plan]
+
+
+def _plan_in_file_names(result, back=lambda n: n):
+    """The plan with every body and region written by its name in the file, mapped by ``back`` (a renamed
+    copy's names -> the original's); references as ``skolem(args)``; arms and slots as they are."""
+    model = result.model
+
+    def name(sym):
+        if sym in model.references:
+            sk, combo = model.references[sym]
+            return f"{sk}({', '.join(map(name, combo))})"
+        label = model.labels.get(sym, sym)
+        if model.objects[sym] not in ("obj", "surf"):
+            return label
+        return f"{back(label[:-4])}_top" if label.endswith("_top") and sym.endswith("_top") else back(label)
+
+    return [f"{s.action}({', '.join(map(name, s.args))})" for s in result.plan]
+
+
+AWKWARD = [  # the issue's names, the arms', PDDL keywords, types, predicates, actions, a slot, spaces, parentheses
+    {"a": "left", "b": "right", "table": "table 1", "goal": "bottom left", "sink": "On", "stove": "("},
+    {"a": "s1", "b": "not", "table": "either", "goal": "left", "sink": "obj", "stove": "and"},
+]
+
+
+@pytest.fixture(scope="module")
+def original(tmp_path_factory):
+    return _solve(tmp_path_factory.mktemp("original"), scene(goal_regions={"b": "goal"}, goal_config="initial"), "scene")
+
+
+@pytest.mark.parametrize("names", AWKWARD, ids=["left-table_1-On", "keywords-types-slot"])
+def test_awkward_names_solve_like_the_original_and_show_in_the_plan(tmp_path, original, names):
+    data = rename(scene(goal_regions={"b": "goal"}, goal_config="initial"), names.get)
+    result = _solve(tmp_path, data, "renamed")
+    assert original.status == "solved", original.reason
+    assert result.status == "solved", result.reason
+    back = {v: k for k, v in names.items()}
+    assert _plan_in_file_names(result, back.get) == _plan_in_file_names(original)
+    place = next(s for s in _as_named(result) if s.startswith("place("))
+    assert place.startswith(f"place({names['b']}, ") and f", {names['goal']}, s1, " in place, place
+    api.write_outputs(result, tmp_path / "out")
+    assert api.validate(tmp_path / "out") == []
+
+
+def test_the_plan_check_and_pages_show_the_files_names(tmp_path, capsys):
+    from interlayer.cli import main
+
+    path = tmp_path / "renamed.json"
+    path.write_text(json.dumps(rename(scene(goal_regions={"b": "goal"}, goal_config="initial"), AWKWARD[0].get)))
+    assert main(["check", str(path)]) == 0
+    out = capsys.readouterr().out
+    for text in ("tables: table 1 (z 0.750)", "regions: bottom left", "sinks: On", "stoves: (", "left: box", "on table 1",
+                 "Goals: right on bottom left;", "bpfpd(right, left, bottom left, s1)"):
+        assert text in out, text
+    assert main(["plan", str(path), "--out", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    assert "task plan #1" in err and ": place(right, right, bottom left, s1, bpfpd(right, right, bottom left, s1)" in err
+    data = json.loads((tmp_path / "out" / "result.json").read_text())
+    assert {"left_1": "left", "right_1": "right", "table_1": "table 1", "bottom_left": "bottom left"}.items() <= data["names"].items()
+    assert main(["explain", str(tmp_path / "out"), "-o", str(tmp_path / "explain.html")]) == 0
+    page = (tmp_path / "explain.html").read_text()
+    assert "place(right, right, bottom left, s1, " in page and "bottom_left, s1" not in page
+
