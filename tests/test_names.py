@@ -1,6 +1,7 @@
 """Names are data (interlayer.names): any string a user's file gives a body or region names it. The
 task level sees safe symbols; whatever a person reads shows the file's names."""
 import copy
+import re
 import json
 
 import pytest
@@ -120,3 +121,50 @@ def test_the_plan_check_and_pages_show_the_files_names(tmp_path, capsys):
     page = (tmp_path / "explain.html").read_text()
     assert "place(right, right, bottom left, s1, " in page and "bottom_left, s1" not in page
 
+
+FOLDER = ["move_several_4.json", "kitchen.json", "stacking.json", "nonmonotonic_4_1.json"]  # replans, clean/cook, tops, unsolvable
+
+
+def _awkward(data):
+    """Every body and region of a file renamed: the issue's names and keywords first, then '<name> (copy)'."""
+    pool = ["left", "right", "On", "table 1", "(", "and", "not", "either", "obj", "surf", "s1", "pick", "bottom left"]
+    old = [b["name"] for b in data["bodies"]] + [r["name"] for r in data["task"].get("regions") or []]
+    new = dict(zip(old, pool + [f"{n} (copy)" for n in old[len(pool):]]))
+    return new
+
+
+@needs_shared
+@pytest.mark.slow
+@pytest.mark.parametrize("name", FOLDER)
+def test_a_renamed_copy_of_a_folder_file_solves_like_the_original(tmp_path, name):
+    data = json.loads((SHARED / name).read_text())
+    new = _awkward(data)
+    original = _solve(tmp_path, data, "original")
+    renamed = _solve(tmp_path, rename(data, new.__getitem__), "renamed")
+    assert renamed.status == original.status, (original.reason, renamed.reason)
+    back = {v: k for k, v in new.items()}
+    assert _plan_in_file_names(renamed, back.get) == _plan_in_file_names(original)
+    words = re.sub(r"[A-Za-z0-9_-]+", lambda m: new.get(m.group(0), m.group(0)), original.reason)
+    assert renamed.reason == words  # a domain's sentence names the file's bodies
+
+
+def test_random_streams_count_objects_by_their_place_not_their_names(tmp_path):
+    """The loop's seed of a step's generator and an EpochState's rng_for: the same for a renamed copy."""
+    from interlayer.abstraction import abstract
+    from interlayer.domain import GroundStep
+    from interlayer.loop import InterfaceLayer, LoopSettings
+    from interlayer.refine import EpochState
+
+    from test_pbjson import load
+
+    data = scene(goal_regions={"b": "goal"})
+    models = [abstract(load(tmp_path, d)) for d in (data, rename(data, AWKWARD[0].get))]
+    a, renamed = "a", next(s for s, name in models[1].labels.items() if name == "left")
+    draws = []
+    for model, obj in zip(models, (a, renamed)):
+        state = EpochState([7])
+        state.ordinal = model.ordinal  # as the loop sets it
+        layer = InterfaceLayer(model, None, None, {"pick": lambda problem, step, world, rng: [rng.random()]}, [], LoopSettings())
+        first = layer.make_generator(0, GroundStep("pick", (obj, "right")), None).reset_and_get_first()
+        draws.append((state.rng_for(obj, "right", 3).random(4).tolist(), first))
+    assert draws[0] == draws[1]

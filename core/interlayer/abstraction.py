@@ -48,11 +48,19 @@ class TaskModel:
     parameter_roles: dict = field(default_factory=dict)  # action -> {var: role}
     labels: dict = field(default_factory=dict)  # symbol -> the name a person reads (objects and their references)
     _by_type: dict = field(default_factory=dict)
+    _ordinals: dict = field(default_factory=dict)
 
     @property
     def init(self) -> frozenset:
         """The abstract initial state: problem facts, reference facts, Prop. 1 defaults."""
         return frozenset(self.problem.init) | self.static_facts | self.default_true
+
+    def ordinal(self, name):
+        """An object's (or reference's) place in the model, what seeds use instead of its name; any
+        other value as it is."""
+        if not self._ordinals:
+            self._ordinals.update({o: f"#{i}" for i, o in enumerate(self.objects)})
+        return self._ordinals.get(name, name)
 
     def objects_of(self, typ: str) -> tuple:
         if typ not in self._by_type:

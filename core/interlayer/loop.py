@@ -120,7 +120,8 @@ class InterfaceLayer:
                 label = getattr(factory, "labels", {}).get(step.action, f"pose generator of '{step.action}'")
                 self.watch.generator_empty(label, index, step)
 
-        return PoseGenerator(candidates, stable_seed(self.settings.seed, self.epoch, index, step))
+        args = map(self.model.ordinal, step.args)  # by their place, not their names: a renamed copy draws alike
+        return PoseGenerator(candidates, stable_seed(self.settings.seed, self.epoch, index, step.action, *args))
 
     def _generator(self, action: str):
         """The action's generator function; an ``EpochState`` subclass gets one fresh instance per
@@ -129,7 +130,9 @@ class InterfaceLayer:
         if not (isinstance(factory, type) and issubclass(factory, EpochState)):
             return factory
         if factory not in self._epoch_states:
-            self._epoch_states[factory] = factory(stable_seed(self.settings.seed, self.epoch, factory.__qualname__))
+            state = factory(stable_seed(self.settings.seed, self.epoch, factory.__qualname__))
+            state.ordinal = self.model.ordinal
+            self._epoch_states[factory] = state
         return self._epoch_states[factory]
 
     def new_epoch(self):
