@@ -112,6 +112,11 @@ def test_the_plan_check_and_pages_show_the_files_names(tmp_path, capsys):
     for text in ("tables: table 1 (z 0.750)", "regions: bottom left", "sinks: On", "stoves: (", "left: box", "on table 1",
                  "Goals: right on bottom left;", "bpfpd(right, left, bottom left, s1)"):
         assert text in out, text
+    path.write_text(json.dumps(rename(scene(goal_regions={"b": "goal"}), lambda n: {"goal": "left"}.get(n, n))))  # move.json's case
+    assert main(["check", str(path)]) == 0
+    out = capsys.readouterr().out  # every reference written alike, whether its objects were renamed or not
+    assert "Goals: b on left" in out and "bpfg(a, left)" in out and "bpfpd(b, right, left, s2)" in out, out
+    path.write_text(json.dumps(rename(scene(goal_regions={"b": "goal"}, goal_config="initial"), AWKWARD[0].get)))
     assert main(["plan", str(path), "--out", str(tmp_path / "out")]) == 0
     err = capsys.readouterr().err
     assert "task plan #1" in err and ": place(right, right, bottom left, s1, bpfpd(right, right, bottom left, s1)" in err

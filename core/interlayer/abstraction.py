@@ -154,7 +154,7 @@ def abstract(problem: Problem) -> TaskModel:
             references[ref] = (sk.name, combo)
             reference_of[(sk.predicate, *combo)] = ref
             static.add((sk.predicate, ref, *combo))
-            if any(c in problem.labels for c in combo):
+            if problem.labels:  # names that are not symbols: every reference as skolem(its names), alike
                 labels[ref] = f"{sk.name}({', '.join(problem.labels.get(c, c) for c in combo)})"
 
     full_actions, task_actions, roles = {}, {}, {}
