@@ -1,8 +1,8 @@
 """Names are data (interlayer.names): any string a user's file gives a body or region names it. The
 task level sees safe symbols; whatever a person reads shows the file's names."""
 import copy
-import re
 import json
+import re
 
 import pytest
 from interlayer import api
@@ -173,3 +173,23 @@ def test_random_streams_count_objects_by_their_place_not_their_names(tmp_path):
         first = layer.make_generator(0, GroundStep("pick", (obj, "right")), None).reset_and_get_first()
         draws.append((state.rng_for(obj, "right", 3).random(4).tolist(), first))
     assert draws[0] == draws[1]
+
+
+@needs_shared
+def test_no_symbol_shows_where_a_person_reads(tmp_path, capsys):
+    """A renamed copy of move_several_4.json (two failures translated into facts, two replans): the
+    progress lines with every attempt, the summary and the explain page name things as the file does."""
+    from interlayer.cli import main
+
+    data = json.loads((SHARED / "move_several_4.json").read_text())
+    path, out = tmp_path / "renamed.json", tmp_path / "out"
+    path.write_text(json.dumps(rename(data, _awkward(data).__getitem__)))
+    assert main(["plan", str(path), "--verbose", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert main(["explain", str(out), "-o", str(tmp_path / "explain.html")]) == 0
+    page = re.sub(r"<script.*?</script>", "", (tmp_path / "explain.html").read_text(), flags=re.S)
+    symbols = set(json.loads((out / "result.json").read_text())["names"])  # the ones that differ from their names
+    assert "refinement failed at step" in err and "Failure 1" in page
+    for text in (err, page):
+        shown = symbols & set(re.findall(r"[A-Za-z0-9_-]+", text))
+        assert not shown, sorted(shown)[:5]

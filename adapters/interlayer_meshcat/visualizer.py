@@ -717,11 +717,11 @@ class _Explainer:
         rows = []
         for a in attempts[:400]:
             f = a.get("failure") or {}
-            res = "ok" if a.get("ok") else escape(f.get("detail") or f.get("kind") or "failed")
+            res = "ok" if a.get("ok") else escape(self.shown(f.get("detail") or f.get("kind") or "failed"))
             if f.get("objects"):
                 res += " <b>[" + escape(", ".join(map(self.shown, f["objects"]))) + "]</b>"
             rows.append(f'<tr><td>{a.get("step")}</td><td class="mono">{escape(self.shown(a.get("action", "")))}</td>'
-                        f'<td>{escape(str(a.get("candidate", "")))}{" (cached)" if a.get("cached") else ""}</td>'
+                        f'<td>{escape(self.shown(str(a.get("candidate", ""))))}{" (cached)" if a.get("cached") else ""}</td>'
                         f'<td class="{"okc" if a.get("ok") else "badc"}">{res}</td></tr>')
         more = f"<p class=muted>... {len(attempts) - 400} more</p>" if len(attempts) > 400 else ""
         table = ("<details><summary>show the attempts</summary><table class=attempts><tr><th>step</th><th>action</th>"
@@ -738,8 +738,8 @@ class _Explainer:
         objs = f.get("objects") or []
         facts = e.get("facts") or []
         text = [f'<h3>Failure {n}: step {e.get("step")} <code>{escape(self.shown(e.get("action", "")))}</code> cannot be refined</h3>',
-                f'<div>candidate: {escape(str(e.get("candidate", "")))}</div>',
-                f'<div>reason: {escape(f.get("kind", "?"))} - {escape(f.get("detail") or "")}</div>']
+                f'<div>candidate: {escape(self.shown(str(e.get("candidate", ""))))}</div>',
+                f'<div>reason: {escape(f.get("kind", "?"))} - {escape(self.shown(f.get("detail") or ""))}</div>']
         if objs:
             text.append("<div>obstructed by: " + ", ".join(f'<b style="color:#c9302c">{escape(self.shown(o))}</b>' for o in objs) + "</div>")
         text.append("<div>learned: " + (", ".join(f'<span class="fact">{escape(self.shown(x))}</span>' for x in facts) or "nothing")

@@ -69,8 +69,8 @@ def progress_printer(verbose: bool):
         elif kind == "warning":
             log(f"warning: {e['message']}")
         elif kind == "attempt":
-            verdict = "ok" if e["ok"] else (e["failure"] or {}).get("detail") or "failed"
-            log(f"{t}   {e['mode']} step {e['step']} {relabel(e['action'], labels)} [{e['candidate']}]: {verdict}")
+            verdict = "ok" if e["ok"] else relabel((e["failure"] or {}).get("detail") or "failed", labels)
+            log(relabel(f"{t}   {e['mode']} step {e['step']} {e['action']} [{e['candidate']}]: ", labels) + verdict)
 
     show.verbose = verbose
     return show
