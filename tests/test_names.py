@@ -102,6 +102,18 @@ def test_awkward_names_solve_like_the_original_and_show_in_the_plan(tmp_path, or
     assert api.validate(tmp_path / "out") == []
 
 
+def test_a_scene_warning_names_the_files_body(tmp_path, capsys):
+    from interlayer.cli import main
+
+    data = rename(scene(goal_regions={"b": "goal"}), AWKWARD[0].get)
+    data["bodies"][3]["point"]["z"] += 0.03  # 'left' (a) floats 3 cm above the table
+    path = tmp_path / "floating.json"
+    path.write_text(json.dumps(data))
+    assert main(["check", str(path)]) == 0
+    err = capsys.readouterr().err
+    assert "The object left floats" in err and "above table 1_0" in err and "left_1" not in err, err
+
+
 def test_the_plan_check_and_pages_show_the_files_names(tmp_path, capsys):
     from interlayer.cli import main
 
@@ -186,10 +198,12 @@ def test_no_symbol_shows_where_a_person_reads(tmp_path, capsys):
     path.write_text(json.dumps(rename(data, _awkward(data).__getitem__)))
     assert main(["plan", str(path), "--verbose", "--out", str(out)]) == 0
     err = capsys.readouterr().err
-    assert main(["explain", str(out), "-o", str(tmp_path / "explain.html")]) == 0
-    page = re.sub(r"<script.*?</script>", "", (tmp_path / "explain.html").read_text(), flags=re.S)
+    pages = []
+    for command in ("explain", "viz"):
+        assert main([command, str(out), "-o", str(tmp_path / f"{command}.html")]) == 0
+        pages.append(re.sub(r"<script.*?</script>", "", (tmp_path / f"{command}.html").read_text(), flags=re.S))
     symbols = set(json.loads((out / "result.json").read_text())["names"])  # the ones that differ from their names
-    assert "refinement failed at step" in err and "Failure 1" in page
-    for text in (err, page):
+    assert "refinement failed at step" in err and "Failure 1" in pages[0] and "place(table 1, " in pages[1]
+    for text in (err, *pages):
         shown = symbols & set(re.findall(r"[A-Za-z0-9_-]+", text))
         assert not shown, sorted(shown)[:5]
