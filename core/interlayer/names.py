@@ -1,8 +1,9 @@
 """Names are data: the symbols a task planner sees for the names people give things.
 
 A problem file may name a body ``left``, ``table 1``, ``On`` or ``(``: such names cannot all stand in a
-PDDL formula, and they may clash with the domain's own objects (the robot's arms), its types and
-predicates, PDDL's keywords, or the references the core derives (``grasp_<object>``). A domain that
+PDDL formula, and they may clash with the domain's own objects (the robot's arms), PDDL's keywords, or
+the references the core derives (``grasp_<object>``). Types, predicates and actions are names of other
+kinds, and the task planner sees objects as ``o<k>`` anyway (interlayer_up.convert). A domain that
 reads names from a user's file gives each one a safe, unique symbol here, once, when it builds its
 problem, and uses the symbols everywhere inside (task model, geometry, plans). ``Problem.labels`` keeps
 symbol -> name, and whatever a person reads (the plan, the trace's lines, ``check``, the pages, the
@@ -26,9 +27,8 @@ class Names:
     differ (what ``Problem.labels`` wants).
 
     Symbols are PDDL names (a letter, then letters, digits, ``_`` and ``-``), unique, never one of
-    ``reserved`` (the domain's types, predicates, actions...) nor a PDDL keyword in any case, nor
-    starting with one of ``prefixes`` (how the core names references: ``<skolem>_``). Case counts as
-    it does for the task model (UP's PDDL writer keeps names that differ only in case apart)."""
+    ``reserved`` nor a PDDL keyword in any case, nor starting with one of ``prefixes`` (how the core
+    names references: ``<skolem>_``). Case counts as it does for the task model."""
 
     def __init__(self, reserved=(), prefixes=()):
         self.labels: dict[str, str] = {}
@@ -37,10 +37,8 @@ class Names:
 
     @classmethod
     def for_domain(cls, domain, reserved=()) -> "Names":
-        """Symbols that clash with nothing ``domain`` (a DomainSpec) declares nor with its references."""
-        words = [*domain.types, *domain.continuous_types, *domain.predicates, *(a.name for a in domain.actions),
-                 *(s.name for s in domain.skolems), *reserved]
-        return cls(words, [f"{s.name}_" for s in domain.skolems])
+        """Symbols that never read as one of ``domain``'s references (a DomainSpec's ``<skolem>_...``)."""
+        return cls(reserved, [f"{s.name}_" for s in domain.skolems])
 
     def add(self, name: str, label: str | None = None) -> str:
         """A new symbol for ``name`` (its label, unless ``label`` is given): ``name`` itself when it is
