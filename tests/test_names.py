@@ -88,6 +88,19 @@ def original(tmp_path_factory):
     return _solve(tmp_path_factory.mktemp("original"), scene(goal_regions={"b": "goal"}, goal_config="initial"), "scene")
 
 
+@pytest.mark.parametrize("region", ["left", "bottom left"])
+def test_a_region_named_like_an_arm_or_with_a_space_solves_like_the_original(tmp_path, original, region):
+    """move.json's region 'left' (a UP type error in planning before) and walls.json's 'bottom left'
+    (three PDDL arguments before)."""
+    result = _solve(tmp_path, rename(scene(goal_regions={"b": "goal"}, goal_config="initial"), lambda n: region if n == "goal" else n),
+                    "renamed")
+    assert result.status == "solved", result.reason
+    assert _plan_in_file_names(result, lambda n: "goal" if n == region else n) == _plan_in_file_names(original)
+    assert f"place(b, right, {region}, s1, " in "; ".join(_as_named(result))
+    api.write_outputs(result, tmp_path / "out")
+    assert api.validate(tmp_path / "out") == []
+
+
 @pytest.mark.parametrize("names", AWKWARD, ids=["left-table_1-On", "keywords-types-slot"])
 def test_awkward_names_solve_like_the_original_and_show_in_the_plan(tmp_path, original, names):
     data = rename(scene(goal_regions={"b": "goal"}, goal_config="initial"), names.get)
