@@ -2,6 +2,7 @@
 task level sees safe symbols; whatever a person reads shows the file's names."""
 import copy
 import json
+import logging
 import re
 
 import pytest
@@ -209,7 +210,12 @@ def test_no_symbol_shows_where_a_person_reads(tmp_path, capsys):
     data = json.loads((SHARED / "move_several_4.json").read_text())
     path, out = tmp_path / "renamed.json", tmp_path / "out"
     path.write_text(json.dumps(rename(data, _awkward(data).__getitem__)))
-    assert main(["plan", str(path), "--verbose", "--out", str(out)]) == 0
+    logger = logging.getLogger("interlayer")
+    before = logger.level
+    try:
+        assert main(["plan", str(path), "--verbose", "--out", str(out)]) == 0
+    finally:
+        logger.setLevel(before)  # --verbose raised it for the process
     err = capsys.readouterr().err
     pages = []
     for command in ("explain", "viz"):
