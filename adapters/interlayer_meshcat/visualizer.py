@@ -50,6 +50,7 @@ class Run:
 
         self.dir = Path(out_dir)
         self.result = runfolder.read_result(self.dir)
+        self.labels = self.result.get("names") or {}  # symbol -> the name a person gave it (interlayer.names)
         self.events = runfolder.read_trace(self.dir, required=need_trace) or []
         self.trajectory = runfolder.read_trajectory(self.dir, required=False)
         self.problem_json = runfolder.read_json(self.dir / "problem.json", required=False) or {}
@@ -95,10 +96,11 @@ def drawer(problem):
     return draw, frames
 
 
-def step_str(s) -> str:
-    if isinstance(s, str):
-        return s
-    return f"{s['action']}({', '.join(s['args'])})"
+def step_str(s, labels=None) -> str:
+    """A step (its JSON, or as the trace writes it) in the names a person gave things."""
+    from interlayer.names import relabel, step_text
+
+    return relabel(s, labels) if isinstance(s, str) else step_text(s, labels)
 
 
 # ------------------------------------------------------------------ scenes
@@ -271,7 +273,7 @@ class MeshcatVisualizer:
         if solved:
             cap.append(f'<div class="note">{len(plan)} step(s), solved in {_secs(run.result.get("times", {}).get("total"))}; '
                        f'{run.result.get("replans", 0)} replan(s). The current step is highlighted.</div>')
-            cap.append("<ol start=\"0\">" + "".join(f"<li>{escape(step_str(s))}</li>" for s in plan) + "</ol>")
+            cap.append("<ol start=\"0\">" + "".join(f"<li>{escape(step_str(s, run.labels))}</li>" for s in plan) + "</ol>")
         else:
             cap.append(f'<div class="note">Status {escape(str(run.result.get("status")))}: '
                        f'{escape(run.result.get("reason") or "")}. No trajectory to animate; the initial world is shown. '
@@ -468,7 +470,7 @@ _NICE = {"task_planning": "task planning", "motion_planning": "motion planning",
 _PALETTE = ["#17becf", "#bcbd22", "#e377c2", "#8c564b", "#9467bd"]
 
 
-def _plan_list(steps, start=0, marks=None, removed=()):
+def _plan_list(steps, start=0, marks=None, removed=(), labels=None):
     """Numbered plan; ``marks`` {index: "kept"|"added"}; ``removed`` [(position, step)]: dropped
     steps of the previous plan, shown struck through before the step at ``position``."""
     marks = marks or {}
@@ -478,12 +480,12 @@ def _plan_list(steps, start=0, marks=None, removed=()):
     items = []
     for i in range(len(steps) + 1):
         for s in gone.get(i, []):
-            items.append(f'<li class="removed">{escape(step_str(s))}<span class="tag removed">dropped</span></li>')
+            items.append(f'<li class="removed">{escape(step_str(s, labels))}<span class="tag removed">dropped</span></li>')
         if i == len(steps):
             break
         m = marks.get(i)
         tag = f'<span class="tag {m}">{m}</span>' if m else ""
-        items.append(f'<li value="{start + i}" class="{m or ""}">{escape(step_str(steps[i]))}{tag}</li>')
+        items.append(f'<li value="{start + i}" class="{m or ""}">{escape(step_str(steps[i], labels))}{tag}</li>')
     return f'<ol class="plan">{"".join(items)}</ol>'
 
 
@@ -507,6 +509,12 @@ class _Explainer:
     def __init__(self, run: Run):
         self.run = run
         self.views = 0
+
+    def shown(self, text: str) -> str:
+        """A fact, step or object as the trace writes it, in the names a person gave things."""
+        from interlayer.names import relabel
+
+        return relabel(text, self.run.labels)
 
     def render(self, title) -> str:
         from interlayer.result import MEANING
@@ -546,7 +554,7 @@ class _Explainer:
         facts = r.get("learned_facts") or []
         if facts:
             html.append("<p>Learned facts (from refinement failures): "
-                        + ", ".join(f'<span class="fact">{escape(f)}</span>' for f in facts) + "</p>")
+                        + ", ".join(f'<span class="fact">{escape(self.shown(f))}</span>' for f in facts) + "</p>")
         return "\n".join(html)
 
     def time_split(self) -> str:
@@ -580,7 +588,7 @@ class _Explainer:
                 col = "#a6afbb" if e.get("mode") == "error-free" else "#e0a060"
                 segs.append((t, nxt, col, f"{e.get('mode')} refinement from step {e.get('from_step')}: {nxt - t:.2f} s"))
             elif e["type"] == "failure":
-                segs.append((t, t, "fail", f"failure at step {e.get('step')}: {', '.join(e.get('facts') or [])}"))
+                segs.append((t, t, "fail", f"failure at step {e.get('step')}: {self.shown(', '.join(e.get('facts') or []))}"))
         divs = []
         for t0, t1, col, label in segs:
             left, width = 100 * t0 / end, max(0.15, 100 * (t1 - t0) / end)
@@ -602,7 +610,7 @@ class _Explainer:
         r = self.run.result
         if r.get("status") != "solved":
             return ""
-        html = ["<h2>Final plan</h2>", _plan_list(r.get("plan") or [])]
+        html = ["<h2>Final plan</h2>", _plan_list(r.get("plan") or [], labels=self.run.labels)]
         scene, _ = solution_scene(self.run, self.run.trajectory, "solution") if self.run.trajectory else (None, [])
         if scene is not None:
             html.append(scene_embed(scene, 640, 400, lazy=True))
@@ -637,7 +645,7 @@ class _Explainer:
                     cost = f", cost {e['cost']:g}" if e.get("cost") is not None else ""
                     html.append(f'<div class="ev task">{t}<h3>Task plan #{e.get("call")} '
                                 f'<span class="muted">(planning from step {frm}, {e.get("time", 0):.2f} s{cost})</span>{note}</h3>'
-                                + _plan_list(new_full, 0, marks, removed) + "</div>")
+                                + _plan_list(new_full, 0, marks, removed, self.run.labels) + "</div>")
                     pending_task = new_full
                 else:
                     html.append(f'<div class="ev dead">{t}<h3>Task planner call #{e.get("call")} from step {frm}: '
@@ -663,7 +671,7 @@ class _Explainer:
                 prefix = e.get("prefix") or []
                 plan = list(e.get("plan") or plan)
                 kept = (f"kept the prefix of {len(prefix)} refined step(s): "
-                        + ", ".join(f"<code>{escape(step_str(s))}</code>" for s in prefix)) if prefix \
+                        + ", ".join(f"<code>{escape(step_str(s, self.run.labels))}</code>" for s in prefix)) if prefix \
                     else "no prefix kept (the failure was at the first step)"
                 keep_ref = " (their motions are reused unchanged)" if prefix else ""
                 html.append(f'<div class="ev replan">{t}<h3>Replanned from step {e.get("fail_step")}</h3>{kept}; '
@@ -671,7 +679,7 @@ class _Explainer:
                             f"{keep_ref}.</div>")
             elif kind == "dead_end":
                 html.append(f'<div class="ev dead">{t}<h3>Dead end at step {e.get("step")}</h3>The state with '
-                            + ", ".join(f'<span class="fact">{escape(f)}</span>' for f in e.get("facts") or [])
+                            + ", ".join(f'<span class="fact">{escape(self.shown(f))}</span>' for f in e.get("facts") or [])
                             + (" timed out in the task planner" if e.get("status") == "timeout" else " has no plan")
                             + "; the next partial refinement is tried.</div>")
             elif kind == "reset":
@@ -685,7 +693,7 @@ class _Explainer:
                 dropped = e["dropped"]
                 html.append(f'<div class="ev done">{t}<h3>Refined {e.get("refined")} steps, dropped {len(dropped)} as not '
                             'needed</h3>Shortcutting: the plan still refines without '
-                            + ", ".join(f"<code>{escape(step_str(s))}</code>" for s in dropped)
+                            + ", ".join(f"<code>{escape(step_str(s, self.run.labels))}</code>" for s in dropped)
                             + f"; the final plan has {len(e.get('plan') or [])} step(s).</div>")
             elif kind == "end":
                 ok = e.get("status") == "solved"
@@ -709,11 +717,11 @@ class _Explainer:
         rows = []
         for a in attempts[:400]:
             f = a.get("failure") or {}
-            res = "ok" if a.get("ok") else escape(f.get("detail") or f.get("kind") or "failed")
+            res = "ok" if a.get("ok") else escape(self.shown(f.get("detail") or f.get("kind") or "failed"))
             if f.get("objects"):
-                res += " <b>[" + escape(", ".join(f["objects"])) + "]</b>"
-            rows.append(f'<tr><td>{a.get("step")}</td><td class="mono">{escape(a.get("action", ""))}</td>'
-                        f'<td>{escape(str(a.get("candidate", "")))}{" (cached)" if a.get("cached") else ""}</td>'
+                res += " <b>[" + escape(", ".join(map(self.shown, f["objects"]))) + "]</b>"
+            rows.append(f'<tr><td>{a.get("step")}</td><td class="mono">{escape(self.shown(a.get("action", "")))}</td>'
+                        f'<td>{escape(self.shown(str(a.get("candidate", ""))))}{" (cached)" if a.get("cached") else ""}</td>'
                         f'<td class="{"okc" if a.get("ok") else "badc"}">{res}</td></tr>')
         more = f"<p class=muted>... {len(attempts) - 400} more</p>" if len(attempts) > 400 else ""
         table = ("<details><summary>show the attempts</summary><table class=attempts><tr><th>step</th><th>action</th>"
@@ -729,12 +737,12 @@ class _Explainer:
         f = e.get("failure") or {}
         objs = f.get("objects") or []
         facts = e.get("facts") or []
-        text = [f'<h3>Failure {n}: step {e.get("step")} <code>{escape(e.get("action", ""))}</code> cannot be refined</h3>',
-                f'<div>candidate: {escape(str(e.get("candidate", "")))}</div>',
-                f'<div>reason: {escape(f.get("kind", "?"))} - {escape(f.get("detail") or "")}</div>']
+        text = [f'<h3>Failure {n}: step {e.get("step")} <code>{escape(self.shown(e.get("action", "")))}</code> cannot be refined</h3>',
+                f'<div>candidate: {escape(self.shown(str(e.get("candidate", ""))))}</div>',
+                f'<div>reason: {escape(f.get("kind", "?"))} - {escape(self.shown(f.get("detail") or ""))}</div>']
         if objs:
-            text.append("<div>obstructed by: " + ", ".join(f'<b style="color:#c9302c">{escape(o)}</b>' for o in objs) + "</div>")
-        text.append("<div>learned: " + (", ".join(f'<span class="fact">{escape(x)}</span>' for x in facts) or "nothing")
+            text.append("<div>obstructed by: " + ", ".join(f'<b style="color:#c9302c">{escape(self.shown(o))}</b>' for o in objs) + "</div>")
+        text.append("<div>learned: " + (", ".join(f'<span class="fact">{escape(self.shown(x))}</span>' for x in facts) or "nothing")
                     + "</div><div class=muted>The task planner now plans from the state before this step with these facts (a (not ...) fact is deleted).</div>")
         view = ""
         if self.views < MAX_FAILURE_VIEWS and self.run.problem is not None:

@@ -1,4 +1,8 @@
-"""TaskModel + symbolic state -> a Unified-Planning problem (built once, cloned per call)."""
+"""TaskModel + symbolic state -> a Unified-Planning problem (built once, cloned per call).
+
+The task planner sees every object as ``o<k>``, numbered in the model's order, never by its name: a
+planner breaks ties by names (Fast Downward picks the other arm when two objects' names sort the other
+way), so a renamed copy of a problem would be searched differently. ``name_of`` maps back."""
 from __future__ import annotations
 
 from interlayer import logic
@@ -23,8 +27,11 @@ class UPProblemBuilder:
         }
         needed = {t for name in used for t in model.predicates[name]}
         needed |= {t for a in model.actions.values() for _, t in a.parameters}
-        self.objects = {name: up.Object(name, self.types[t]) for name, t in model.objects.items()
-                        if any(model.is_subtype(t, n) or model.is_subtype(n, t) for n in needed)}
+        kept = [(name, t) for name, t in model.objects.items()
+                if any(model.is_subtype(t, n) or model.is_subtype(n, t) for n in needed)]
+        width = len(str(max(0, len(kept) - 1)))  # the same length: they sort in the model's order
+        self.objects = {name: up.Object(f"o{k:0{width}d}", self.types[t]) for k, (name, t) in enumerate(kept)}
+        self.name_of = {o.name: name for name, o in self.objects.items()}
         problem = up.Problem(model.problem.name)
         for f in self.fluents.values():
             problem.add_fluent(f, default_initial_value=False)

@@ -160,7 +160,7 @@ class UPTaskPlanner(TaskPlanner):
             _quiet_environment()
             problem = _settled(self._builder(model).problem_for(state))
             if self.pddl_dir is not None:
-                _dump_pddl(problem, self.pddl_dir, self.calls)
+                _dump_pddl(problem, self.pddl_dir, self.calls, self._builder(model).name_of)
         deadline = time.perf_counter() + timeout
         for params in (self.params, *self.fallbacks):
             left = deadline - time.perf_counter()
@@ -179,7 +179,8 @@ class UPTaskPlanner(TaskPlanner):
                 why = _up_validate(problem, plan)
             if why:
                 return "error", [], why, None
-        steps = [(ai.action.name, [p.object().name for p in ai.actual_parameters]) for ai in plan.actions]
+        name_of = self._builder(model).name_of
+        steps = [(ai.action.name, [name_of[p.object().name] for p in ai.actual_parameters]) for ai in plan.actions]
         cost = sum(model.actions[a].cost for a, _ in steps)
         return "solved", steps, "", cost
 
@@ -200,13 +201,14 @@ class UPTaskPlanner(TaskPlanner):
 
         builder = self._builder(model)
         problem = _settled(builder.problem_for(state))
-        up_plan = SequentialPlan([ActionInstance(problem.action(s.action), [problem.object(o) for o in model.task_args(s)])
+        up_plan = SequentialPlan([ActionInstance(problem.action(s.action), [builder.objects[o] for o in model.task_args(s)])
                                   for s in plan])
         return _up_validate(problem, up_plan)
 
 
-def _dump_pddl(problem, folder, call: int) -> None:
-    """Exactly what the task planner saw, so it can be rerun alone (``fast-downward domain problem``)."""
+def _dump_pddl(problem, folder, call: int, name_of: dict) -> None:
+    """Exactly what the task planner saw, so it can be rerun alone (``fast-downward domain problem``),
+    and ``objects.txt``: what each object ``o<k>`` is (``o3 b2``, a line each)."""
     from pathlib import Path
 
     from unified_planning.io import PDDLWriter
@@ -218,6 +220,7 @@ def _dump_pddl(problem, folder, call: int) -> None:
     writer = PDDLWriter(problem)
     writer.write_domain(str(folder / f"call-{call:03d}-domain.pddl"))
     writer.write_problem(str(folder / f"call-{call:03d}-problem.pddl"))
+    (folder / "objects.txt").write_text("".join(f"{o} {name}\n" for o, name in name_of.items()))
 
 
 def _engine(name: str, params=None, checks: bool = False):

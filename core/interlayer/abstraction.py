@@ -46,12 +46,21 @@ class TaskModel:
     reference_of: dict  # (skolem predicate, args...) -> reference
     uniformity: list = field(default_factory=list)  # violations of Def. 1 (empty: uniform)
     parameter_roles: dict = field(default_factory=dict)  # action -> {var: role}
+    labels: dict = field(default_factory=dict)  # symbol -> the name a person reads (objects and their references)
     _by_type: dict = field(default_factory=dict)
+    _ordinals: dict = field(default_factory=dict)
 
     @property
     def init(self) -> frozenset:
         """The abstract initial state: problem facts, reference facts, Prop. 1 defaults."""
         return frozenset(self.problem.init) | self.static_facts | self.default_true
+
+    def ordinal(self, name):
+        """An object's (or reference's) place in the model, what seeds use instead of its name; any
+        other value as it is."""
+        if not self._ordinals:
+            self._ordinals.update({o: f"#{i}" for i, o in enumerate(self.objects)})
+        return self._ordinals.get(name, name)
 
     def objects_of(self, typ: str) -> tuple:
         if typ not in self._by_type:
@@ -132,6 +141,7 @@ def abstract(problem: Problem) -> TaskModel:
 
     # References: one per Skolem-function application over the problem's objects (App. A).
     references, reference_of, static = {}, {}, set()
+    labels = dict(problem.labels)
     skolem_preds = {}
     for sk in spec.skolems:
         skolem_preds[sk.predicate] = sk
@@ -144,6 +154,8 @@ def abstract(problem: Problem) -> TaskModel:
             references[ref] = (sk.name, combo)
             reference_of[(sk.predicate, *combo)] = ref
             static.add((sk.predicate, ref, *combo))
+            if problem.labels:  # names that are not symbols: every reference as skolem(its names), alike
+                labels[ref] = f"{sk.name}({', '.join(problem.labels.get(c, c) for c in combo)})"
 
     full_actions, task_actions, roles = {}, {}, {}
     occurrences: dict[str, set] = {}
@@ -214,6 +226,7 @@ def abstract(problem: Problem) -> TaskModel:
         reference_of=reference_of,
         uniformity=uniformity,
         parameter_roles=roles,
+        labels=labels,
     )
 
 

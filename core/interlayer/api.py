@@ -11,6 +11,7 @@ from .abstraction import TaskModel, abstract
 from .errors import UserError
 from .faults import ComponentFailed, Guarded, PluginFault, blame, blamed
 from .loop import InterfaceLayer, Interrupted, LoopSettings
+from .names import relabel
 from .plugins import PluginHost
 from .refine import EpochState, drawn_within
 from .result import Result
@@ -208,7 +209,7 @@ def scene_issues(problem) -> list:
     """The domain's sentences about its scene at the initial poses (``geometry.scene_issues()``,
     optional): ("error", ...) for scenes no plan can start from, ("warning", ...) for doubtful ones."""
     check = getattr(problem.geometry, "scene_issues", None)
-    return [(str(kind), str(sentence)) for kind, sentence in check()] if callable(check) else []
+    return [(str(kind), relabel(str(sentence), problem.labels)) for kind, sentence in check()] if callable(check) else []
 
 
 def prepare(source, overrides=None, host: PluginHost | None = None) -> Prepared:
@@ -267,7 +268,7 @@ def solve(source, overrides=None, host: PluginHost | None = None, listeners=(), 
     trace = Trace([host.on_event, *listeners])
     for warning in [*host.warnings, *(sentence for kind, sentence in run.scene_issues if kind != "error")]:
         trace.emit("warning", message=warning)
-    trace.emit("start", problem=problem.name, references=len(model.references), config=config)
+    trace.emit("start", problem=problem.name, references=len(model.references), config=config, names=model.labels)
     if hasattr(problem.geometry, "stats"):
         problem.geometry.stats = stats
     if hasattr(problem.geometry, "cartesian"):  # the domain plans straight-line end-effector segments
@@ -395,7 +396,7 @@ def validation(out_dir, host: PluginHost | None = None) -> Validation:
     checked.append("trajectory steps match the plan")
     if hasattr(problem.geometry, "validate"):
         try:
-            violations += problem.geometry.validate(plan, trajectory)
+            violations += [relabel(v, problem.labels) for v in problem.geometry.validate(plan, trajectory)]  # in the file's names
         except PluginFault as fault:  # the validator choked on the file's content: the file is damaged
             if not isinstance(fault.cause, (KeyError, IndexError, TypeError, ValueError, AttributeError)):
                 raise

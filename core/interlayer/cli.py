@@ -12,6 +12,7 @@ import sys
 
 from .errors import UserError
 from .faults import PluginFault
+from .names import relabel, step_text
 from .result import MEANING
 
 EXIT_OK, EXIT_NOT_SOLVED, EXIT_USER_ERROR, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -21,54 +22,55 @@ def log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
-def step_text(step: dict) -> str:
-    return f"{step['action']}({', '.join(step['args'])})"
-
-
-def shortened_text(e: dict) -> str:
+def shortened_text(e: dict, labels=None) -> str:
     """The 'shortened' trace event in words: how many steps were refined and which were dropped."""
     dropped = e["dropped"]
     return (f"refined {e['refined']} steps, dropped {len(dropped)} as not needed: "
-            + "; ".join(step_text(s) for s in dropped))
+            + "; ".join(step_text(s, labels) for s in dropped))
 
 
 def progress_printer(verbose: bool):
-    """Turn trace events into short human-readable lines on stderr."""
+    """Turn trace events into short human-readable lines on stderr, in the problem's names (the
+    "start" event's ``names``: symbol -> name where they differ)."""
+    labels = {}
 
     def show(e):
+        if e["type"] == "start":
+            labels.update(e.get("names") or {})
         if e["type"] == "attempt" and not verbose:
             return
         t = f"[{e['t']:7.2f}s]"
         kind = e["type"]
         if kind == "task_plan":
             if e["status"] == "solved":
-                steps = "; ".join(step_text(s) for s in e["plan"])
+                steps = "; ".join(step_text(s, labels) for s in e["plan"])
                 cost = f", cost {e['cost']:g}" if e.get("cost") is not None else ""
                 log(f"{t} task plan #{e['call']} from step {e['from_step']} ({e['time']:.2f} s{cost}): {steps}")
             else:
                 log(f"{t} task planner call #{e['call']}: {e['status']} {e['reason']}".rstrip())
         elif kind == "failure":
-            log(f"{t} refinement failed at step {e['step']} {e['action']}: {e['failure']['kind']}"
-                f" {' '.join(e['failure']['objects'])} -> learned {', '.join(e['facts'])}")
+            log(relabel(f"{t} refinement failed at step {e['step']} {e['action']}: {e['failure']['kind']}", labels)
+                + f" {', '.join(labels.get(o, o) for o in e['failure']['objects'])}"
+                f" -> learned {relabel(', '.join(e['facts']), labels)}")
         elif kind == "replan":
             log(f"{t} replanned from step {e['fail_step']}, kept a prefix of {len(e['prefix'])} action(s)")
         elif kind == "dead_end":
             why = "the task planner timed out on it" if e.get("status") == "timeout" else "it has no plan"
             log(f"{t} the updated state at step {e['step']} is a dead end ({why}); trying the next partial refinement")
         elif kind == "recurring":
-            log(f"{t} the failure at step {e['step']} recurs ({', '.join(e['facts'])} learned {e['limit']} times in "
+            log(f"{t} the failure at step {e['step']} recurs ({relabel(', '.join(e['facts']), labels)} learned {e['limit']} times in "
                 f"this epoch already); trying the next partial refinement")
         elif kind == "reset":
             log(f"{t} reset (epoch {e['epoch']}): {e['reason']}; learned facts cleared, generators reseeded")
         elif kind == "refined":
             log(f"{t} refinement found for all {e['steps']} steps")
         elif kind == "shortened" and e["dropped"]:
-            log(f"{t} {shortened_text(e)}")
+            log(f"{t} {shortened_text(e, labels)}")
         elif kind == "warning":
             log(f"warning: {e['message']}")
         elif kind == "attempt":
-            verdict = "ok" if e["ok"] else (e["failure"] or {}).get("detail") or "failed"
-            log(f"{t}   {e['mode']} step {e['step']} {e['action']} [{e['candidate']}]: {verdict}")
+            verdict = "ok" if e["ok"] else relabel((e["failure"] or {}).get("detail") or "failed", labels)
+            log(relabel(f"{t}   {e['mode']} step {e['step']} {e['action']} [{e['candidate']}]: ", labels) + verdict)
 
     show.verbose = verbose
     return show
@@ -242,11 +244,11 @@ def cmd_plan(args) -> int:
             log(f"Solved in {data['times']['total']:.2f} s with {result.task_planner_calls} task-planner call(s) and "
                 f"{result.replans} replan(s).")
             for i, s in enumerate(result.plan):
-                log(f"  {i}: {s}")
+                log(f"  {i}: {step_text(s, data['names'])}")
         else:
             log(f"Not solved ({result.status}: {MEANING.get(result.status, 'not solved')}): {result.reason}")
         if result.learned_facts:
-            log("Learned facts: " + ", ".join(data["learned_facts"]))
+            log("Learned facts: " + relabel(", ".join(data["learned_facts"]), data["names"]))
         if args.out:
             log(f"Wrote {args.out}/ (result.json, trace.json, config.toml, problem.json"
                 f"{', trajectory.json' if result.solved else ''}).")
@@ -285,6 +287,7 @@ def cmd_check(args) -> int:
     report = {
         "references": refs,
         "reference_facts": sorted(atom_str(a) for a in model.static_facts),
+        "names": model.labels,  # symbol -> the name a person gave it, where they differ
         "geometric_predicates": {p: {"occurs": form, "default": form == "positive"} for p, form in model.geometric.items()},
         "default_true_atoms": len(model.default_true),
         "uniform": not model.uniformity,
@@ -304,8 +307,9 @@ def cmd_check(args) -> int:
         print(f"Scene: {scene}")
     print(f"Pose references ({len(model.references)}):")
     for sk, names in refs.items():
-        print(f"  {sk}: {' '.join(names)}")
-    print("Reference facts: " + " ".join(report["reference_facts"][:12]) + (" ..." if len(report["reference_facts"]) > 12 else ""))
+        print(f"  {sk}: {', '.join(model.labels.get(n, n) for n in names)}")
+    facts = [relabel(f, model.labels) for f in report["reference_facts"][:12]]
+    print("Reference facts: " + " ".join(facts) + (" ..." if len(report["reference_facts"]) > 12 else ""))
     print("Geometric predicates and their Prop. 1 defaults:")
     for p, info in report["geometric_predicates"].items():
         print(f"  {p}: occurs {info['occurs']}ly -> default {'true' if info['default'] else 'false'}")

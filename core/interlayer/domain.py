@@ -88,6 +88,8 @@ class Problem:
     file's contents), written to ``OUT_DIR/problem.json``. ``drawing`` is how visualizers draw it:
     a module, or its dotted name, with ``draw_scene(geometry, scene, world)`` and
     ``animation_frames(geometry, scene, trajectory)``; by default the one its domain registered.
+    ``labels`` maps an object's symbol to the name a person gave it, where the two differ (names read
+    from a user's file: see ``interlayer.names``); whatever a person reads shows the names.
     """
 
     domain: DomainSpec
@@ -98,3 +100,4 @@ class Problem:
     source: Mapping[str, Any]
     name: str = "problem"
     drawing: Any = None
+    labels: Mapping[str, str] = field(default_factory=dict)

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from . import deadline as deadlines, logic
 from .abstraction import TaskModel
 from .domain import GroundStep
+from .names import relabel
 from .deadline import Deadline, DeadlineExceeded
 from .refine import EpochState, Infeasible, PoseGenerator, Refinement, Refiner, drawn_within, stable_seed
 from .result import Result
@@ -119,7 +120,8 @@ class InterfaceLayer:
                 label = getattr(factory, "labels", {}).get(step.action, f"pose generator of '{step.action}'")
                 self.watch.generator_empty(label, index, step)
 
-        return PoseGenerator(candidates, stable_seed(self.settings.seed, self.epoch, index, step))
+        args = map(self.model.ordinal, step.args)  # by their place, not their names: a renamed copy draws alike
+        return PoseGenerator(candidates, stable_seed(self.settings.seed, self.epoch, index, step.action, *args))
 
     def _generator(self, action: str):
         """The action's generator function; an ``EpochState`` subclass gets one fresh instance per
@@ -128,7 +130,9 @@ class InterfaceLayer:
         if not (isinstance(factory, type) and issubclass(factory, EpochState)):
             return factory
         if factory not in self._epoch_states:
-            self._epoch_states[factory] = factory(stable_seed(self.settings.seed, self.epoch, factory.__qualname__))
+            state = factory(stable_seed(self.settings.seed, self.epoch, factory.__qualname__))
+            state.ordinal = self.model.ordinal
+            self._epoch_states[factory] = state
         return self._epoch_states[factory]
 
     def new_epoch(self):
@@ -246,6 +250,7 @@ class InterfaceLayer:
                                        f"did not return: the process was ended", None)
 
     def _result(self, status, reason, refinement) -> Result:
+        reason = relabel(reason, getattr(self.model, "labels", None))  # a domain's sentence, in the file's names
         self.stats.times["total"] = time.perf_counter() - self.deadline.start
         accounted = sum(v for k, v in self.stats.times.items() if k not in ("total", "interface"))
         self.stats.times["interface"] = max(0.0, self.stats.times["total"] - accounted)

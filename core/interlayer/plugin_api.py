@@ -11,7 +11,8 @@ Domains
     default pose generator) and a ``Problem`` per instance, whose ``geometry`` implements
     ``Geometry``: ``refine_step`` returns a ``StepOutcome``, ok or with a ``Failure(kind,
     objects)`` whose ``kind`` must be a key of the action's ``learn`` to teach the task planner.
-    The domain's ``drawing`` (``Drawing``) lets visualizers draw it.
+    The domain's ``drawing`` (``Drawing``) lets visualizers draw it. Names read from a user's file
+    become symbols through ``Names`` (``Problem.labels`` shows them again).
 Pose generators
     ``fn(problem, step, world, rng) -> iterable of Candidate``; raise ``Infeasible`` when a
     reference can never be instantiated. A generator that needs state between calls subclasses
@@ -41,6 +42,7 @@ from .errors import UserError
 from .faults import PluginFault
 from .logic import negated
 from .motion import Clearance, ConfigSpace, InterpolatingPlanner, MotionPlan, MotionPlanner, MotionQuery, points_valid, segment_valid
+from .names import Names
 from .planning import TaskPlanner, TaskPlanResult
 from .plugins import Registry
 from .refine import ROBOT_MOVED, Candidate, EpochState, Failure, Geometry, Infeasible, StepOutcome
@@ -67,5 +69,5 @@ __all__ = [
     "Geometry", "Candidate", "StepOutcome", "Failure", "Infeasible", "EpochState", "ROBOT_MOVED", "Drawing",
     "ConfigSpace", "MotionQuery", "MotionPlan", "MotionPlanner", "InterpolatingPlanner", "segment_valid", "points_valid",
     "Clearance", "Stats",
-    "TaskPlanner", "TaskPlanResult", "translate_by_templates", "negated",
+    "TaskPlanner", "TaskPlanResult", "translate_by_templates", "negated", "Names",
 ]

@@ -133,11 +133,16 @@ class EpochState:
     here and nowhere else (never on the geometry): the refinement cache and the paper's
     completeness argument depend on it."""
 
+    ordinal = None  # set by the loop: an object's or reference's place in the task model (TaskModel.ordinal)
+
     def __init__(self, seed):
         self.seed = seed
 
     def rng_for(self, *key) -> np.random.Generator:
-        """A random generator that depends only on this epoch's seed and ``key``."""
+        """A random generator that depends only on this epoch's seed and ``key``, where an object or a
+        reference counts by its place in the task model, not its name (names are data)."""
+        if self.ordinal is not None:
+            key = [self.ordinal(k) if isinstance(k, str) else k for k in key]
         return np.random.default_rng([*self.seed, *stable_seed(*key)])
 
     def __call__(self, problem, step, world, rng) -> Iterable[Candidate]:

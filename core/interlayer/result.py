@@ -59,4 +59,6 @@ class Result:
             "counts": self.counts,
             "seed": self.seed,
             "config": self.config,
+            # symbol -> the name a person gave it, where they differ (plan args are symbols: interlayer.names)
+            "names": dict(getattr(self.model, "labels", None) or {}),
         }

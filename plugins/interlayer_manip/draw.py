@@ -294,6 +294,7 @@ def draw_scene(geometry, scene, world=None) -> dict:
         world = _initial(geometry)
     fixed, specs = _specs(geometry)
     target = getattr(getattr(geometry, "layout", None), "target", None)
+    labels = getattr(getattr(geometry, "layout", None), "extra", {}).get("labels", {})
     top = _table_top(geometry)
     names = {}
     try:
@@ -340,7 +341,8 @@ def draw_scene(geometry, scene, world=None) -> dict:
             color = COLORS["movable"][others % len(COLORS["movable"])]
             others += 1
         sn, h = _add_shape(scene, f"{name}/shape", spec, color)
-        scene.label(f"{name}/label", name, [0, 0, h / 2 + 0.03], height=0.035, priority=2 if name == target else 0)
+        shown = labels.get(name, name)  # the name a file gave it (interlayer.names)
+        scene.label(f"{name}/label", shown, [0, 0, h / 2 + 0.03], height=0.035, priority=2 if name == target else 0)
         T = poses.get(name)
         if T is None and spec is not None:
             T = _mat(getattr(spec, "pose", None))

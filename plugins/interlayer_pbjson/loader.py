@@ -14,13 +14,15 @@ import numpy as np
 
 from interlayer.domain import Problem
 from interlayer.errors import UserError
+from interlayer.names import Names
 from interlayer_manip.scene import Layout
 
 from .domain import SLOTS, pbjson_domain
-from .scene import area, read_scene, top_name
+from .scene import area, read_scene, tops
 
 log = logging.getLogger("interlayer.pbjson")
 ARMS = ("left", "right")
+SLOT_NAMES = tuple(f"s{k + 1}" for k in range(SLOTS))
 
 
 def looks_like_pybullet_json(path) -> dict | None:
@@ -43,12 +45,23 @@ def load_pybullet_json(path, data, params, seed) -> Problem:
     if params:
         raise UserError(f"{path.name}: problem parameters {sorted(params)} do not apply to a problem file.")
     try:
-        scene = read_scene(data, path.stem)
-        return build_problem(scene, {"domain": "pbjson", "file": str(path), "seed": seed})
+        symbols = task_symbols()
+        scene = read_scene(data, path.stem, symbols)
+        return build_problem(scene, {"domain": "pbjson", "file": str(path), "seed": seed}, symbols)
     except (KeyError, IndexError, TypeError, ValueError, AttributeError) as exc:
         what = f"the key {exc}" if isinstance(exc, KeyError) else f"{type(exc).__name__}: {exc}"
         raise UserError(f"{path.name} is not a pybullet-planning problem Interlayer can read ({what}); "
                         f"check the file against the format's bodies / robots / task fields.") from None
+
+
+def task_symbols():
+    """The symbols of this encoding's own objects (the arms, the slots) taken first, so that a file's
+    names (``left``, ``s1``, ``On``, ``table 1``...) get symbols of their own (interlayer.names)."""
+    symbols = Names.for_domain(pbjson_domain(tops=True, goal_poses=True, sinks=True, stoves=True, home=True, go_to=True))
+    for name in (*ARMS, *SLOT_NAMES):
+        if symbols.add(name) != name:
+            raise AssertionError(f"the encoding's own object {name!r} is not a free symbol")
+    return symbols
 
 
 def torso_height(scene) -> float:
@@ -105,7 +118,7 @@ def reachable_limits(fixed, start, xr, yr, res=0.04):
             (max(yr[0], float(ys[j.min()]) - res), min(yr[1], float(ys[j.max()]) + res)))
 
 
-def build_problem(scene, source) -> Problem:
+def build_problem(scene, source, symbols) -> Problem:
     from .world import PBGeometry
 
     spots = scene.surfaces
@@ -131,10 +144,11 @@ def build_problem(scene, source) -> Problem:
         log.info("torso raised from %.3f (robots[0].conf) to %.3f m to reach surfaces at %.2f m", scene.torso, torso,
                  max((s.z for s in spots.values()), default=main_top))
     extra = {"table_top": float(main_top), "base_limits": (lo, hi), "torso_height": torso, "torso_conf": scene.torso,
-             "supports": tuple(o.name for o in scene.fixed if any(_body(o.name, s) for s in spots.values())),
+             "supports": tuple(o.name for o in scene.fixed if any(_body(scene, o.name, s) for s in spots.values())),
              "surfaces": spots, "colors": scene.colors, "offsets": scene.offsets, "arms": scene.arms, "goals": goals,
              "clutter_table": clutter_table, "camera": scene.camera, "notes": scene.notes,
-             "floors": [o for o in scene.fixed if o.name in scene.floors]}  # drawn, not collided with
+             "floors": [o for o in scene.fixed if o.name in scene.floors],  # drawn, not collided with
+             "body_of": scene.body_of, "labels": symbols.labels}
     # the target (Clutter's samplers search harder for its grasps and keep put-downs out of its way): the
     # object to hold, else the one object a goal places
     placed = list(dict.fromkeys([*(m for o in goals["on"] for m in goals["members"][o]), *goals["stackings"], *goals["poses"]]))
@@ -145,7 +159,7 @@ def build_problem(scene, source) -> Problem:
     geometry = PBGeometry(layout)
     extra["goal_centres"] = {o: geometry.goal_centre(o) for o in goals["poses"]}
     names = [o.name for o in scene.objects]
-    slots = [f"s{k + 1}" for k in range(SLOTS)]
+    slots = list(SLOT_NAMES)
     kinds = {s.kind for s in spots.values()}
     domain = pbjson_domain(tops="top" in kinds, goal_poses=bool(goals["poses"]), sinks="sink" in kinds,
                            stoves="stove" in kinds, home=goals["home"], go_to=bool(goals["base"]))
@@ -153,15 +167,13 @@ def build_problem(scene, source) -> Problem:
     objects.update({a: "arm" for a in ARMS})
     objects.update({s: "slot" for s in slots})
     objects.update({s: "surf" for s in spots})
-    clash = sorted(set(names) & set(ARMS + tuple(slots)))
-    if clash:
-        raise UserError(f"task.object_names: {clash[0]!r} is a name Interlayer reserves (arms, slots); rename the body.")
     init = {("HandEmpty", a) for a in ARMS} | {("Other", "left", "right"), ("Other", "right", "left")}
     init |= {("Resting", o) for o in names}
     world = geometry.initial_world()
     if geometry.in_collision(world):
         pairs = sorted({b for a, b in geometry.cw.collision_pairs(geometry.sync(world))})
-        raise UserError(f"robots[0]: the PR2 at its start (point, quat and conf) collides with {', '.join(pairs)}; "
+        raise UserError(f"robots[0]: the PR2 at its start (point, quat and conf) collides with "
+                        f"{', '.join(symbols.label(p) for p in pairs)}; "
                         f"move it or change its conf.")
     for o in names:
         for s in geometry.supports_of(o, world.objects[o], world):
@@ -180,7 +192,7 @@ def build_problem(scene, source) -> Problem:
     if goals["holding"]:  # any one of the objects named, in either hand
         parts.append(f"(or {' '.join(f'(Holding {t} {a})' for t in goals['holding'] for a in ARMS)})")
     parts += [_any(f"(On {m} {s})" for m in goals["members"][o]) for o, s in goals["on"].items()]
-    parts += [f"(On {o} {top_name(b)})" for o, b in goals["stackings"].items()]
+    parts += [f"(On {o} {tops(spots)[b]})" for o, b in goals["stackings"].items()]
     parts += [f"(AtGoalPose {o})" for o in goals["poses"]]
     parts += [f"(Cleaned {o})" for o in goals["cleaned"]] + [f"(Cooked {o})" for o in goals["cooked"]]
     if goals["home"]:
@@ -188,7 +200,8 @@ def build_problem(scene, source) -> Problem:
     if goals["base"]:
         parts.append("(AtBaseGoal)")
     source = {**source, "layout": layout.to_json()}
-    return Problem(domain, objects, frozenset(init), f"(and {' '.join(parts)})", geometry, source, name=scene.name)
+    return Problem(domain, objects, frozenset(init), f"(and {' '.join(parts)})", geometry, source, name=scene.name,
+                   labels=symbols.labels)
 
 
 def _any(atoms):
@@ -196,10 +209,10 @@ def _any(atoms):
     return atoms[0] if len(atoms) == 1 else f"(or {' '.join(atoms)})"
 
 
-def _body(spec_name, surface):
-    """The body a fixed spec belongs to when it is part of ``surface``'s body (specs are <body> or <body>_<k>)."""
+def _body(scene, spec_name, surface):
+    """The body a fixed spec belongs to when it is part of ``surface``'s body."""
     b = surface.body
     if b is None or surface.kind == "top":
         return None
-    return b if spec_name == b or (spec_name.startswith(f"{b}_") and spec_name[len(b) + 1:].isdigit()) else None
+    return b if scene.body_of.get(spec_name) == b else None
 

@@ -52,6 +52,7 @@ class Scene:
     goals: dict
     notes: list = field(default_factory=list)  # approximations made, shown by `interlayer check`
     camera: tuple | None = None  # where the file's camera looks from (relative to the scene's centre)
+    body_of: dict = field(default_factory=dict)  # fixed spec -> its body
 
 
 def rotation(q, where) -> np.ndarray:
@@ -236,7 +237,9 @@ def _too_large(label, what) -> str:
             f"shapes (its collision world grows with their square); leave out the bodies far from the task.")
 
 
-def read_scene(data, label) -> Scene:
+def read_scene(data, label, symbols) -> Scene:
+    """The scene of a file. Every body and region gets its symbol from ``symbols`` (an interlayer.names.Names):
+    the scene, its goals and everything built on them use the symbols; the file's names are their labels."""
     from collections import Counter
 
     task, bodies = data["task"], data["bodies"]
@@ -256,26 +259,27 @@ def read_scene(data, label) -> Scene:
                 raise UserError(f"task.{key} names {n!r}, which is not a body of the file.")
     if not movable and not isinstance(task.get("goal_config"), list):  # a drive alone needs none (trivial_namo)
         raise UserError("task.object_names is empty: the problem has no movable object.")
-    for reserved in ("left", "right"):
-        if reserved in known:
-            raise UserError(f"bodies: a body is named {reserved!r}, which Interlayer reserves for the PR2's arms; rename it.")
+    sym = {n: symbols.add(n) for n in names}  # in the file's order: the same file, the same symbols
     role = {n: k for k in ("table", "sink", "stove") for n in _names(task, f"{k}_names")}
     fixed, objects, offsets, colors, floors, notes, surfaces = [], [], {}, {}, [], [], {}
     frames = {}  # movable object -> its body frame at the start (a goal pose may name another object's)
+    body_of = {}  # fixed spec -> its body
     for i, body in enumerate(bodies):
-        name = body["name"]
-        is_movable = name in movable
+        name = sym[body["name"]]
+        is_movable = body["name"] in movable
         T, shapes, mesh = read_body(body, i, is_movable)
         if mesh:
-            notes.append(f"{name}: mesh without its file, modelled as the body's bounding box")
+            notes.append(f"{body['name']}: mesh without its file, modelled as the body's bounding box")
         specs = []
         for k, (shape, size, pose, color, _) in enumerate(shapes):
-            spec = ObjectSpec(name if len(shapes) == 1 else f"{name}_{k}", shape, size, pose, movable=is_movable)
+            spec_name = name if len(shapes) == 1 else symbols.add(f"{name}_{k}", label=f"{body['name']}_{k}")
+            spec = ObjectSpec(spec_name, shape, size, pose, movable=is_movable)
             colors[spec.name] = color
+            body_of[spec.name] = name
             specs.append(spec)
         if is_movable:
             objects.append(specs[0])
-            frames[name] = T
+            frames[body["name"]] = T
             centre = (np.linalg.inv(T) @ np.append(np.array(specs[0].pose[:3]), 1.0))[:3]
             offsets[name] = [*centre.tolist(), specs[0].pose[3] - math.atan2(T[1, 0], T[0, 0])]  # + yaw in the body
             continue
@@ -285,15 +289,18 @@ def read_scene(data, label) -> Scene:
         fixed += specs
         if len(fixed) + len(objects) > MAX_SHAPES:
             raise UserError(_too_large(label, f"more than {MAX_SHAPES} collision shapes"))
-        if name in role:
+        if body["name"] in role:
             top = max(specs, key=lambda s: s.pose[2] + s.height / 2)
-            surfaces[name] = Surface(name, role[name], polygon_of(top), top.pose[2] + top.height / 2, name,
+            surfaces[name] = Surface(name, role[body["name"]], polygon_of(top), top.pose[2] + top.height / 2, name,
                                      colors.get(top.name))
     for i, region in enumerate(task.get("regions") or []):
         where = f"task.regions[{i}]"
         rname = region["name"]
-        if rname in known or rname in surfaces:
+        if not isinstance(rname, str):
+            raise UserError(f"{where}.name = {rname!r} must be a string.")
+        if rname in sym:
             raise UserError(f"{where}.name = {rname!r} is already the name of a body or region.")
+        sym[rname] = rname = symbols.add(rname)
         R = frame(region, where)
         hull = region["hull"]
         try:
@@ -309,7 +316,7 @@ def read_scene(data, label) -> Scene:
         if len(poly) < 3 or area(poly) < 1e-6:
             raise UserError(f"{where}.hull = {hull!r} encloses no area.")
         surfaces[rname] = Surface(rname, "region", poly, float(R[2, 3]), None, _color(region))
-    goals = read_goals(task, frames, surfaces)
+    goals = _goal_symbols(read_goals(task, frames, {n for n in sym if sym[n] in surfaces}), sym)
     # objects that others rest on, and the stacking targets, get a surface on their top
     specs = {o.name: o for o in objects}
     tops = set(goals["stackings"].values())
@@ -321,8 +328,9 @@ def read_scene(data, label) -> Scene:
                 tops.add(other.name)
     for t in sorted(tops):
         s = specs[t]
+        top = symbols.add(top_name(t), label=top_name(symbols.label(t)))
         local = polygon_of(ObjectSpec(t, s.shape, s.size, (0.0, 0.0, 0.0, 0.0)))
-        surfaces[top_name(t)] = Surface(top_name(t), "top", local, s.height / 2, t, colors.get(t))
+        surfaces[top] = Surface(top, "top", local, s.height / 2, t, colors.get(t))
     for n in surfaces:
         if n in specs:
             raise UserError(f"task: {n!r} is both a movable object and a surface.")
@@ -338,11 +346,31 @@ def read_scene(data, label) -> Scene:
         centre = np.mean([o.pose[:3] for o in fixed + objects], axis=0)
         camera = tuple(float(v) for v in point(data["camera"]["point"], "camera.point") - centre)
     return Scene(str(task.get("name") or data.get("name") or label), fixed, objects, offsets, surfaces, colors, floors,
-                 base, torso, arms, tuple(dict.fromkeys(str(g).lower() for g in grasps)), goals, notes, camera)
+                 base, torso, arms, tuple(dict.fromkeys(str(g).lower() for g in grasps)), goals, notes, camera, body_of)
+
+
+def _goal_symbols(goals, sym) -> dict:
+    """The goals read on the file's names, over their symbols (a class keeps the file's words as its key)."""
+    one = sym.get
+    out = dict(goals)
+    out["holding"] = tuple(map(one, goals["holding"])) if goals["holding"] else goals["holding"]
+    out["members"] = {sym.get(o, o): tuple(map(one, m)) for o, m in goals["members"].items()}
+    out["on"] = {sym.get(o, o): one(s) for o, s in goals["on"].items()}
+    out["stackings"] = {one(o): one(b) for o, b in goals["stackings"].items()}
+    out["poses"] = {one(o): p for o, p in goals["poses"].items()}
+    out["pose_of"] = {one(o): one(b) for o, b in goals["pose_of"].items()}
+    out["cleaned"], out["cooked"] = [one(o) for o in goals["cleaned"]], [one(o) for o in goals["cooked"]]
+    return out
 
 
 def top_name(obj) -> str:
+    """How the top of ``obj`` is named (its symbol may differ: see ``tops``)."""
     return f"{obj}_top"
+
+
+def tops(surfaces) -> dict:
+    """object -> the surface on its top."""
+    return {s.body: s.name for s in surfaces.values() if s.kind == "top"}
 
 
 def read_robot(robot):

@@ -5,9 +5,15 @@ import math
 
 
 def describe(geometry) -> str:
+    """The summary in the file's names."""
     layout = geometry.layout
     extra = layout.extra
-    bodies = sorted({_body(o.name) for o in layout.fixed} | {_body(o.name) for o in extra.get("floors", [])})
+    labels, body_of = extra.get("labels", {}), extra.get("body_of", {})
+
+    def show(*symbols):
+        return ", ".join(labels.get(s, s) for s in symbols)
+
+    bodies = sorted({show(body_of.get(o.name, o.name)) for o in layout.fixed + extra.get("floors", [])})
     lines = [f"{len(layout.objects)} movable object(s), {len(bodies)} fixed bod{'y' if len(bodies) == 1 else 'ies'} "
              f"({len(layout.fixed)} collision shapes: {', '.join(bodies)})"]
     kinds = {}
@@ -15,13 +21,13 @@ def describe(geometry) -> str:
         kinds.setdefault(s.kind, []).append(s)
     for kind, label in (("table", "tables"), ("region", "regions"), ("sink", "sinks"), ("stove", "stoves"), ("top", "object tops")):
         if kind in kinds:
-            lines.append(f"  {label}: " + ", ".join(f"{s.name} (z {s.z:.3f}" + (f", {len(s.polygon)}-gon" if kind == "region" else "")
+            lines.append(f"  {label}: " + ", ".join(f"{show(s.name)} (z {s.z:.3f}" + (f", {len(s.polygon)}-gon" if kind == "region" else "")
                                                     + ")" for s in kinds[kind]))
     world = geometry.initial_world()
     for o in layout.objects:
         size = "x".join(f"{v:.3f}" for v in (o.size if o.shape == "box" else (2 * o.size[0], o.size[1])))
-        on = ", ".join(geometry.supports_of(o.name, world.objects[o.name], world)) or "nothing known"
-        lines.append(f"  {o.name}: {o.shape} {size} m at ({o.pose[0]:.3f}, {o.pose[1]:.3f}, {o.pose[2]:.3f}), "
+        on = show(*geometry.supports_of(o.name, world.objects[o.name], world)) or "nothing known"
+        lines.append(f"  {show(o.name)}: {o.shape} {size} m at ({o.pose[0]:.3f}, {o.pose[1]:.3f}, {o.pose[2]:.3f}), "
                      f"yaw {math.degrees(o.pose[3]):.0f} deg, on {on}")
     b = layout.base
     torso = extra.get("torso_conf")
@@ -34,15 +40,15 @@ def describe(geometry) -> str:
     goals = []
     if g["holding"]:  # as the file writes it, then the objects it names when that differs
         named = g["holding_as"] if isinstance(g["holding_as"], str) else " or ".join(g["holding_as"])
-        goals.append(f"hold {named}" + ("" if list(g["holding"]) == [named] else f" (any one of {', '.join(g['holding'])})"))
-    goals += [f"{o} on {s}" + ("" if g["members"][o] == (o,) else f" (any one of {', '.join(g['members'][o])})")
+        goals.append(f"hold {named}" + ("" if show(*g["holding"]) == named else f" (any one of {show(*g['holding'])})"))
+    goals += [f"{show(o)} on {show(s)}" + ("" if g["members"][o] == (o,) else f" (any one of {show(*g['members'][o])})")
               for o, s in g["on"].items()]
-    goals += [f"{o} stacked on {b}" for o, b in g["stackings"].items()]
-    goals += [f"{o} at " + ("its initial pose" if isinstance(p, str) else f"{g['pose_of'][o]}'s initial pose" if o in g.get("pose_of", {})
-                            else "({:.3f}, {:.3f}, {:.3f})".format(*p[:3, 3]))
+    goals += [f"{show(o)} stacked on {show(b)}" for o, b in g["stackings"].items()]
+    goals += [f"{show(o)} at " + ("its initial pose" if isinstance(p, str) else f"{show(g['pose_of'][o])}'s initial pose"
+                                  if o in g.get("pose_of", {}) else "({:.3f}, {:.3f}, {:.3f})".format(*p[:3, 3]))
               for o, p in g["poses"].items()]
-    goals += [f"{o} cleaned (put on a sink)" for o in g["cleaned"]]
-    goals += [f"{o} cooked (put on a stove once clean)" for o in g["cooked"]]
+    goals += [f"{show(o)} cleaned (put on a sink)" for o in g["cleaned"]]
+    goals += [f"{show(o)} cooked (put on a stove once clean)" for o in g["cooked"]]
     if g["home"]:
         goals.append("the robot back at its start configuration")
     if g["base"]:
@@ -52,7 +58,3 @@ def describe(geometry) -> str:
         lines.append(f"Note: {note}")
     return "\n".join(lines)
 
-
-def _body(name):
-    head, _, tail = name.rpartition("_")
-    return head if head and tail.isdigit() else name

@@ -22,7 +22,7 @@ from interlayer_manip.validate import upright
 from interlayer_manip.state import PADDING, _failure, _holding, pose4, wrap
 from interlayer_manip.world import ManipulationGeometry
 
-from .scene import ON_TOL, inside, top_name
+from .scene import ON_TOL, inside, tops
 
 HOME_TOL = 1e-3  # m / rad: the robot is back at its start configuration
 GOAL_POS_TOL, GOAL_YAW_TOL = 0.01, math.radians(5)  # an object is at its goal pose
@@ -133,7 +133,7 @@ class PBGeometry(ManipulationGeometry):
         if g["holding"] and all(world.holder(o) is None for o in g["holding"]):
             out.append(f"goal not satisfied: {' or '.join(g['holding'])} is not held at the end")
         wanted = [(o, s, g["members"][o]) for o, s in g["on"].items()]
-        wanted += [(o, top_name(b), (o,)) for o, b in g["stackings"].items()]
+        wanted += [(o, tops(self.surfaces)[b], (o,)) for o, b in g["stackings"].items()]
         for o, s, members in wanted:
             if not any(m in world.objects and s in self.supports_of(m, world.objects[m], world) for m in members):
                 out.append(f"goal not satisfied: {' or '.join(members)} does not rest on {s} at the end")
