@@ -17,7 +17,7 @@ from interlayer.errors import UserError
 from interlayer_manip.scene import Layout
 
 from .domain import SLOTS, pbjson_domain
-from .scene import area, read_scene, top_name
+from .scene import area, oriented_box, read_scene, top_name
 
 log = logging.getLogger("interlayer.pbjson")
 ARMS = ("left", "right")
@@ -112,12 +112,13 @@ def build_problem(scene, source) -> Problem:
     tables = [s for s in spots.values() if s.kind == "table"]
     # the single table's box: Clutter's base sampler keeps the base off it (several tables: a box far away,
     # and the base is kept off the tables by collision checks alone)
-    clutter_table, table = None, (1e9, 1e9, 1e9, 1e9)
+    clutter_table, table, table_frame = None, (1e9, 1e9, 1e9, 1e9), None
     if len(tables) == 1:
         xs, ys = [p[0] for p in tables[0].polygon], [p[1] for p in tables[0].polygon]
         table = (min(xs), max(xs), min(ys), max(ys))
+        table_frame = oriented_box(tables[0].polygon)  # the table's own frame: it may stand turned
         placing = any(scene.goals[k] for k in ("on", "stackings", "poses", "cleaned", "cooked"))
-        if not placing and abs(area(tables[0].polygon) - (table[1] - table[0]) * (table[3] - table[2])) < 1e-6:
+        if not placing and abs(area(tables[0].polygon) - 4 * table_frame[3] * table_frame[4]) < 1e-6:
             clutter_table = tables[0].name  # the paper's kind of scene: Clutter's put-down sampler applies as it is
     pts = [scene.base[:2]] + ([scene.goals["base"][:2]] if scene.goals["base"] else []) + [p for o in scene.fixed + scene.objects if o.name not in scene.floors
                               for p in [o.pose[:2]]]
@@ -133,7 +134,7 @@ def build_problem(scene, source) -> Problem:
     extra = {"table_top": float(main_top), "base_limits": (lo, hi), "torso_height": torso, "torso_conf": scene.torso,
              "supports": tuple(o.name for o in scene.fixed if any(_body(o.name, s) for s in spots.values())),
              "surfaces": spots, "colors": scene.colors, "offsets": scene.offsets, "arms": scene.arms, "goals": goals,
-             "clutter_table": clutter_table, "camera": scene.camera, "notes": scene.notes,
+             "clutter_table": clutter_table, "table_frame": table_frame, "camera": scene.camera, "notes": scene.notes,
              "floors": [o for o in scene.fixed if o.name in scene.floors]}  # drawn, not collided with
     # the target (Clutter's samplers search harder for its grasps and keep put-downs out of its way): the
     # object to hold, else the one object a goal places
