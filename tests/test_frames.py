@@ -126,6 +126,35 @@ def test_a_spot_s_distance_to_the_edge_is_taken_in_the_table_s_frame():
     assert np.allclose(scores, scores[0])
 
 
+def test_base_poses_stay_inside_a_turned_room_not_its_axis_aligned_box(tmp_path):
+    """A square room turned by 0.7 rad: the corners of its axis-aligned box lie beyond the walls, where a
+    base is collision-free but no drive reaches it; base poses are drawn inside the walls only."""
+    from interlayer.plugins import PluginHost
+    from interlayer_clutter.samplers import base_near
+    from test_pbjson import _body, _box, scene
+
+    data = scene(goal_regions={"b": "goal"})
+    data["bodies"] += [_body(f"w{k}", (x, y, 0.2), [_box((sx / 2, sy / 2, 0.2))])
+                       for k, (x, y, sx, sy) in enumerate([(0.6, -1.6, 4.2, 0.02), (0.6, 1.6, 4.2, 0.02),
+                                                           (2.7, 0.0, 0.02, 3.2), (-1.5, 0.0, 0.02, 3.2)])]
+    path = tmp_path / "room.json"
+    path.write_text(json.dumps(moved(data, 0.7)))
+    g = PluginHost().load_problem(path, {}, 0).geometry
+    c, s = math.cos(0.7), math.sin(0.7)
+
+    def in_room(x, y, margin):  # in the room's own frame: x from -1.5 to 2.7, y from -1.6 to 1.6
+        u, v = c * x + s * y, -s * x + c * y
+        return -1.5 + margin < u < 2.7 - margin and -1.6 + margin < v < 1.6 - margin
+
+    rng = np.random.default_rng(0)
+    corner = (c * 2.6 - s * 1.5, s * 2.6 + c * 1.5)  # a spot in the room's far corner: half its disk is beyond the walls
+    bases = [b for b in (base_near(g, *corner, rng) for _ in range(300)) if b is not None]
+    assert bases and all(in_room(x, y, 0.2) for x, y, _ in bases)  # the base's disk (0.3 m) inside the walls
+    (lx, hx), (ly, hy) = g.layout.extra["base_limits"]
+    beyond = [(x, y) for x, y in rng.uniform((lx, ly), (hx, hy), (2000, 2)) if not in_room(x, y, -0.05)]
+    assert len(beyond) > 200 and not any(g.layout.extra["base_area"](x, y) for x, y in beyond)
+
+
 def _shared_moved(tmp_path, name, angle, shift=(0.5, -0.3)):
     path = tmp_path / f"{Path(name).stem}_moved.json"
     path.write_text(json.dumps(moved(json.loads((SHARED / name).read_text()), angle, shift)))

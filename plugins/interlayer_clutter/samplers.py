@@ -42,6 +42,7 @@ def base_near(geometry, x, y, rng, reach=(0.55, 0.95), heading=None):
     tool when its ``heading`` is fixed (a given object pose and grasp: most sides cannot reach it)."""
     table = table_frame(geometry.layout)
     (lx, hx), (ly, hy) = base_limits(geometry.layout)
+    area = geometry.layout.extra.get("base_area")
     for _ in range(20):
         r = rng.uniform(*reach)
         a = rng.uniform(-math.pi, math.pi) if heading is None else heading + math.pi + rng.uniform(-0.8, 0.8)
@@ -49,8 +50,8 @@ def base_near(geometry, x, y, rng, reach=(0.55, 0.95), heading=None):
         u, v = in_frame(table, bx, by)
         if abs(u) < table[3] + 0.33 and abs(v) < table[4] + 0.33:
             continue  # the base would stand under the table (in the table's own frame: it may be turned)
-        if not (lx <= bx <= hx and ly <= by <= hy):
-            continue
+        if not (lx <= bx <= hx and ly <= by <= hy) or (area is not None and not area(bx, by)):
+            continue  # outside the base's limits, or (a layout that knows it) where the base cannot drive
         yaw = math.atan2(y - by, x - bx) + rng.uniform(-0.35, 0.35)
         return (float(bx), float(by), float(wrap(yaw)))
     return None
