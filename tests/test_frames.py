@@ -82,6 +82,18 @@ def test_the_smallest_box_around_a_turned_rectangle_is_in_its_own_frame():
     assert np.allclose((cx, cy, yaw), (2, -1, 0.7)) and np.allclose(sorted((hx, hy)), (0.3, 0.6))
 
 
+def test_put_down_spots_are_drawn_in_a_turned_region_s_own_frame():
+    """A 1.0 x 0.1 m region turned by 45 degrees fills a tenth of its axis-aligned box: drawn in its own
+    frame, every draw lands in it."""
+    from interlayer_pbjson.scene import draw_in, inside
+
+    c = math.sqrt(0.5)
+    poly = [(1 + c * u - c * v, 2 + c * u + c * v) for u, v in ((-0.5, -0.05), (0.5, -0.05), (0.5, 0.05), (-0.5, 0.05))]
+    pts = draw_in(poly, np.random.default_rng(0), 500)
+    assert all(inside(poly, x, y, -1e-9) for x, y in pts)
+    assert np.ptp(pts[:, 0]) > 0.6 and np.ptp(pts[:, 1]) > 0.6  # spread along its length
+
+
 def _table_layout(yaw):
     """A 1.2 x 0.6 table centred at (2, -1), turned by ``yaw``, for the Clutter samplers."""
     from interlayer_manip.scene import Layout

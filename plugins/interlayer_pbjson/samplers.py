@@ -18,11 +18,11 @@ from dataclasses import replace
 
 import numpy as np
 from interlayer.refine import Candidate
-from interlayer_clutter.samplers import ClutterSampler, fmt, from_frame, in_corridors, putdown_motion
+from interlayer_clutter.samplers import ClutterSampler, fmt, in_corridors, putdown_motion
 from interlayer_manip.scene import REST_GAP, _radius
 from interlayer_manip.state import pose4, wrap
 
-from .scene import inside, oriented_box, polygon_of
+from .scene import draw_in, inside, polygon_of
 
 
 class PBSampler(ClutterSampler):
@@ -62,10 +62,8 @@ class PBSampler(ClutterSampler):
         others = [(Q[0, 3], Q[1, 3], _radius(geometry.specs[k])) for k, Q in world.objects.items() if k not in (obj, below)]
         corridors = self.corridors_for(world, obj, geometry.layout.target)  # the best approaches found so far
         r = _radius(o)
-        box = oriented_box(poly)  # drawn in the surface's own frame: as many land inside however it is turned
-        n = 25 * tries
         spots = []
-        for x, y in np.column_stack(from_frame(box, rng.uniform(-box[3], box[3], n), rng.uniform(-box[4], box[4], n))):
+        for x, y in draw_in(poly, rng, 25 * tries):
             if not inside(poly, x, y, 0.005 if stacked else min(o.size[0], o.size[1]) / 2):
                 continue
             if any(math.hypot(x - a, y - b) < r + s + 0.02 for a, b, s in reserved):

@@ -227,6 +227,15 @@ def oriented_box(poly) -> tuple:
     return best[1]
 
 
+def draw_in(poly, rng, n) -> np.ndarray:
+    """n points (x, y) drawn uniformly in the smallest box around a convex polygon, in the polygon's own
+    frame (see :func:`oriented_box`): as many land inside it however it is turned in the world."""
+    from interlayer_clutter.samplers import from_frame
+
+    box = oriented_box(poly)
+    return np.column_stack(from_frame(box, rng.uniform(-box[3], box[3], n), rng.uniform(-box[4], box[4], n)))
+
+
 def inside(poly, x, y, margin=0.0) -> bool:
     """(x, y) lies in the convex counter-clockwise polygon, at least ``margin`` from its edges."""
     for (ax, ay), (bx, by) in zip(poly, poly[1:] + poly[:1]):
