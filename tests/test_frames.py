@@ -110,7 +110,7 @@ def test_base_poses_near_a_turned_table_stand_around_it_not_around_its_axis_alig
     from interlayer_clutter.samplers import base_near, in_frame
 
     yaw = 0.7
-    geometry = SimpleNamespace(layout=_table_layout(yaw))
+    geometry = SimpleNamespace(layout=_table_layout(yaw), robot=SimpleNamespace(mobile=True))
     frame = geometry.layout.extra["table_frame"]
     xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
     rng = np.random.default_rng(0)
@@ -132,7 +132,7 @@ def test_a_spot_s_distance_to_the_edge_is_taken_in_the_table_s_frame():
     sampler = ClutterSampler(0)
     scores = []
     for yaw in (0.0, 0.7, 2.0):
-        geometry = SimpleNamespace(layout=_table_layout(yaw))
+        geometry = SimpleNamespace(layout=_table_layout(yaw), robot=SimpleNamespace(mobile=True))
         x, y = from_frame(geometry.layout.extra["table_frame"], 0.5, 0.1)  # 0.1 m from the short edge
         scores.append(sampler.spot_score(geometry, world, None, x, y))
     assert np.allclose(scores, scores[0])

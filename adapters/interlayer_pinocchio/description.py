@@ -140,8 +140,8 @@ def _parse(data: dict, path: Path) -> RobotDescription:
         r.fail("arms", f"two arms are named {next(n for n in names if names.count(n) > 1)!r}")
     limits = r.table(data, "limits")
     r.keys(limits, "limits", {"velocity", "acceleration"})
-    vel, acc = (tuple((j, r.positive(r.table(limits, f"limits.{k}"), f"limits.{k}.{j}", key=j))
-                      for j in r.table(limits, f"limits.{k}")) for k in ("velocity", "acceleration"))
+    vel, acc = (tuple((j, r.positive(table, f"limits.{k}.{j}", key=j)) for j in table)
+                for k in ("velocity", "acceleration") for table in [r.table(limits, k, field=f"limits.{k}")])
     sc = r.table(data, "self_collision")
     r.keys(sc, "self_collision", {"skip"})
     skip = None
@@ -225,23 +225,20 @@ class _Reader:
         return data[key]
 
     def string(self, data: dict, field: str, key: str | None = None, default=None) -> str:
-        key = key or field.rsplit(".", 1)[-1]
-        if key not in data:
-            if default is not None:
-                return default
-            self.fail(field, "missing")
-        if not isinstance(data[key], str) or not data[key]:
-            self.fail(field, "must be a non-empty string")
-        return data[key]
+        return self._value(data, field, key, default, lambda v: isinstance(v, str) and v, "a non-empty string")
 
     def list(self, data: dict, field: str, key: str | None = None, default=None) -> list:
+        return self._value(data, field, key, default, lambda v: isinstance(v, list), "a list")
+
+    def _value(self, data: dict, field: str, key, default, ok, what: str):
+        """``data[key]`` (key: the field's last part), ``default`` when absent (None: required), checked by ``ok``."""
         key = key or field.rsplit(".", 1)[-1]
         if key not in data:
             if default is not None:
                 return default
             self.fail(field, "missing")
-        if not isinstance(data[key], list):
-            self.fail(field, "must be a list")
+        if not ok(data[key]):
+            self.fail(field, f"must be {what}")
         return data[key]
 
     def number(self, data: dict, field: str, key: str | None = None) -> float:

@@ -1,7 +1,7 @@
 """Registers Clutter-N (the paper's cluttered table) and its pose generators."""
 from interlayer import hookimpl
 
-PARAMS = {"objects": 15, "approach": "free"}
+PARAMS = {"objects": 15, "approach": "free", "robot": "pr2"}
 
 
 def make_problem(params, seed):
@@ -19,7 +19,8 @@ def interlayer_register_domains(registry):
     from interlayer_manip.params import TIMING
 
     registry.add("clutter", make_problem,
-                 "the paper's cluttered table (Clutter-N): a PR2 must hold one of N cylinders, clearing those in the way",
+                 "the paper's cluttered table (Clutter-N): a robot (problem.robot, default the PR2) must hold one of N "
+                 "cylinders, clearing those in the way",
                  params={**PARAMS, **TIMING}, drawing="interlayer_manip.draw")
 
 

@@ -9,7 +9,7 @@ import numpy as np
 from interlayer.refine import Candidate, EpochState
 from interlayer_manip.generators import _base_free
 from interlayer_manip.scene import REST_GAP, base_limits, table_top
-from interlayer_manip.state import ARMS, pose4, wrap
+from interlayer_manip.state import pose4, wrap
 
 
 def table_frame(layout) -> tuple:
@@ -39,7 +39,10 @@ def from_frame(frame, u, v):
 
 def base_near(geometry, x, y, rng, reach=(0.55, 0.95), heading=None):
     """A base pose facing (x, y) from outside the table, sampled around the table's sides; behind the
-    tool when its ``heading`` is fixed (a given object pose and grasp: most sides cannot reach it)."""
+    tool when its ``heading`` is fixed (a given object pose and grasp: most sides cannot reach it).
+    A fixed-base robot: where it stands."""
+    if not geometry.robot.mobile:
+        return tuple(geometry.layout.base)
     table = table_frame(geometry.layout)
     (lx, hx), (ly, hy) = base_limits(geometry.layout)
     area = geometry.layout.extra.get("base_area")
@@ -128,7 +131,9 @@ class ClutterSampler(EpochState):
         every one of its grasps has objects in the way; else None. The refinement learns that grasp's
         blockers with this arm's (see ManipulationGeometry.approach_blocked). An other arm that holds an object
         is asked as it will be once it has put that down: out of the way, the arm tucked."""
-        other = next(a for a in ARMS if a != arm)
+        other = next((a for a in problem.geometry.robot.arms if a != arm), None)
+        if other is None:  # a one-armed robot: no other arm to ask about
+            return None
         free = _hand_emptied(problem.geometry, world, other) if world.held.get(other) else world
         ranked = self.ranked_grasps(problem, free, obj, other)
         if not ranked or not ranked[0][0][0]:
@@ -157,8 +162,9 @@ class ClutterSampler(EpochState):
         n_bases = 3 * tries if target else tries
         found = []
         # the other arm tucked and nothing held: the candidates must not depend on the world they were asked in
-        w0 = replace(world, held={}, arms={a: tuple(geometry.robot.home(a)) for a in ARMS},
-                     grippers={a: "closed" for a in ARMS})
+        arms = geometry.robot.arms
+        w0 = replace(world, held={}, arms={a: tuple(geometry.robot.home(a)) for a in arms},
+                     grippers={a: "closed" for a in arms})
         for i in range(n_bases + 2 * tries):
             if i >= n_bases and found:
                 break  # past the first bases, only search on while nothing at all was found
@@ -382,6 +388,11 @@ def _table_spots(geometry, world, obj, rng, tries):
     u0, u1 = max(-table[3] + m, cu.min() - PUT_REACH), min(table[3] - m, cu.max() + PUT_REACH)
     v0, v1 = max(-table[4] + m, cv.min() - PUT_REACH), min(table[4] - m, cv.max() + PUT_REACH)
     pts = np.column_stack(from_frame(table, rng.uniform(u0, u1, n), rng.uniform(v0, v1, n)))
+    reach = geometry.layout.extra.get("reach")
+    if reach is not None:  # a fixed base (see clutter_layout): only where its arm reaches
+        bx, by = geometry.layout.base[:2]
+        pts = pts[np.hypot(pts[:, 0] - bx, pts[:, 1] - by) <= reach]
+        n = len(pts)
     others = np.array([Q[:2, 3] for Q in world.objects.values()]).reshape(-1, 2)
     d = np.min(np.linalg.norm(pts[:, None, :] - others[None, :, :], axis=2), axis=1) if len(others) else np.full(n, 9.0)
     for gap in (0.06, 0.04, 0.025):

@@ -145,7 +145,7 @@ def check_property(geometry, want_witness=True) -> Report:
 def _witness(geometry, first, free, P):
     """(pull, base) on the grid from which the right or left arm reaches a top grasp and its pre-grasp."""
     from interlayer_manip.generators import _base_free
-    from interlayer_manip.state import ARMS, trans
+    from interlayer_manip.state import trans
 
     rng = np.random.default_rng(0)
     world0 = geometry.initial_world()
@@ -165,7 +165,7 @@ def _witness(geometry, first, free, P):
                         continue
                     n += 1
                     wb = replace(w, base=base)
-                    for arm in ARMS:
+                    for arm in geometry.robot.arms:
                         for T in grasps:
                             wo = wb.with_gripper(arm, geometry.opening("inner", np.linalg.inv(T) @ Pd))
                             v = geometry.ik(wo, arm, T, rng, movables=True, ignore=("inner",), attempts=3)

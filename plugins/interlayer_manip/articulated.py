@@ -98,7 +98,7 @@ class Articulated:
             last = w
         b = self.bodies[body]
         names = list(self.robot.group(f"{arm}_arm").dof_names) + [f"{body}/{j}" for j in b.joint_names]
-        seg = self._segment(kind, f"{arm}_arm", [np.asarray(p, float)[:7] for p in path], _holding(world))
+        seg = self._segment(kind, f"{arm}_arm", [np.asarray(p, float)[:len(names) - len(b.joint_names)] for p in path], _holding(world))
         seg["joint_names"] = names
         for pt, p in zip(seg["points"], path):
             pt["positions"] = [float(v) for v in p]

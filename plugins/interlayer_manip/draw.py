@@ -141,7 +141,7 @@ class _State:
                 q = r.set(q, f"{arm}_arm", vals)
             except Exception:
                 pass
-        for arm in ("left", "right"):
+        for arm in r.arms:
             try:
                 g = self.grippers.get(arm)
                 if arm in self.opening:
@@ -426,7 +426,7 @@ def animation_frames(geometry, scene, trajectory) -> list:
                             state.base = tuple(float(x) for x in v)
                             frames.append(frame(i))
                     else:
-                        arm = group.split("_")[0]
+                        arm = robot.arm_of(group)
                         names = list(seg.get("joint_names") or [])
                         try:
                             dof = list(robot.group(group).dof_names)

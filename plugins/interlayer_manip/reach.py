@@ -11,6 +11,8 @@ from interlayer.refine import Failure, StepOutcome
 
 from .state import rz, trans
 
+MIRRORED = np.diag([1.0, -1.0, -1.0, 1.0])  # a tool pose rolled half a turn about its x (approach) axis
+
 
 class Reach:
     def ik(self, world, arm, target, rng, movables=False, ignore=(), seed=None, attempts=8, gripper=None):
@@ -23,8 +25,14 @@ class Reach:
             w = w.with_gripper(arm, gripper)
         with self.stats.timer("ik"):  # the sync (the seed configuration) is the solver's set-up
             q = self.sync(w)
-            return solve_ik(self.robot, arm, target, q, rng=rng, world=self.cw, attempts=attempts,
-                            ignore=tuple(ignore), movables=movables)
+            found = solve_ik(self.robot, arm, target, q, rng=rng, world=self.cw, attempts=attempts,
+                             ignore=tuple(ignore), movables=movables)
+            if found is None and not self.robot.mobile:
+                # a fixed base cannot step round to reach it: the same pose with the fingers swapped (rolled
+                # half a turn about the approach axis) may be within the wrist's range
+                found = solve_ik(self.robot, arm, target @ MIRRORED, q, rng=rng, world=self.cw, attempts=attempts,
+                                 ignore=tuple(ignore), movables=movables)
+            return found
 
     def _staging(self, w, arm, v, stage):
         """Arm vectors from ``v`` to the tool ``stage`` further back along its x axis, or None:

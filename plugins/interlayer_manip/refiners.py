@@ -150,10 +150,13 @@ class Refiners:
     def _move_base(self, step, world, cand, motion, acc):
         goal = tuple(float(v) for v in cand.waypoints[0])
         segs = []
-        res = self._plan(motion, self.base_query(world, world.base, goal, "move_base", acc), "base", "base", segs,
-                         _holding(world), world, acc)
-        if not res.ok:
-            return _failure(res, "base")
+        if self.robot.mobile:
+            res = self._plan(motion, self.base_query(world, world.base, goal, "move_base", acc), "base", "base", segs,
+                             _holding(world), world, acc)
+            if not res.ok:
+                return _failure(res, "base")
+        elif self.base_space.distance(np.asarray(world.base, float), np.asarray(goal, float)) > 1e-9:
+            return StepOutcome(False, failure=Failure("unreachable", (), "move_base: the robot's base is fixed"))
         tloc = {}  # what this base pose was chosen for: a put-down spot, or a grasp checked by IK
         if "tloc" in cand.values:
             obj, P = cand.values["tloc"]
@@ -193,6 +196,8 @@ class Refiners:
         if not res.ok:
             return _failure(res, "pick raise", obj)
         w = w.with_arm(arm, lift[-1])
+        if not self.robot.carry_poses(arm):  # no carry postures (a fixed arm): it keeps the lifted pose
+            return StepOutcome(True, w, segs)
         carry = self.carry(w, arm, np.random.default_rng(0))
         if carry is None:
             return StepOutcome(False, failure=Failure("ik", (), "no collision-free carry posture"))

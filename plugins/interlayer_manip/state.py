@@ -8,10 +8,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from interlayer.refine import Failure, StepOutcome
-from interlayer_pinocchio.description import describe  # a TOML read: no Pinocchio
 
-# The PR2's arm names, for building domains before a robot exists (the geometry reads self.robot.arms).
-ARMS = tuple(a.name for a in describe("pr2").arms)
 RES_ARM = 0.02  # rad between collision checks when planning an arm (the validator checks 5x finer)
 # Planning keeps this far from fixed obstacles (their boxes are padded), so that contacts missed
 # between two checks at RES_ARM (the fingertips move up to ~1.6 cm per 0.02 rad) are not real ones;
@@ -54,7 +51,7 @@ def is_open(state) -> bool:
 @dataclass(frozen=True)
 class World:
     base: tuple
-    arms: dict = field(hash=False)  # arm -> 7 floats
+    arms: dict = field(hash=False)  # arm -> its joint values
     grippers: dict = field(hash=False)  # arm -> "open" (fully) | ("open", width) | "closed" | width (closed on a handle)
     objects: dict = field(hash=False)  # name -> 4x4 pose of objects that are not held
     held: dict = field(hash=False)  # arm -> (object, tool_T_object 4x4)

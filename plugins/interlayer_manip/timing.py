@@ -13,7 +13,8 @@ class Output:
         timing = {**TIMING, **{k: v for k, v in self.layout.extra.items() if k in TIMING}}
         if group == "base":
             return np.array(timing["base_velocity"], float), np.array(timing["base_acceleration"], float)
-        return self.robot.velocity_limits(group), np.full(7, float(timing["arm_acceleration"]))
+        vmax = self.robot.velocity_limits(group)
+        return vmax, np.full(len(vmax), float(timing["arm_acceleration"]))
 
     def _segment(self, kind, group, path, holding):
         """A motion segment; its points get their timing when the plan is written (``timed``)."""
@@ -27,7 +28,7 @@ class Output:
         from interlayer_optim.timing import time_parameterize
 
         group = segment["group"]
-        space = self.base_space if group == "base" else self.arm_space[group.split("_")[0]]
+        space = self.base_space if group == "base" else self.arm_space[self.robot.arm_of(group)]
         path = [np.asarray(p["positions"], float) for p in segment["points"]]
         if group == "base":  # unwrap the heading, so that the timing follows the short way round
             raw, path = path, path[:1]

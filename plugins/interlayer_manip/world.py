@@ -27,7 +27,7 @@ from .queries import MotionQueries
 from .reach import Reach
 from .refiners import Refiners
 from .scene import Layout, base_limits
-from .state import ARMS, OPEN_CLEARANCE, PADDING, RES_ARM, RES_BASE, World, is_open, pose4
+from .state import OPEN_CLEARANCE, PADDING, RES_ARM, RES_BASE, World, is_open, pose4
 from .timing import Output
 
 
@@ -35,12 +35,13 @@ class ManipulationGeometry(MotionQueries, Reach, Refiners, Articulated, Output):
     """Refinement runtime of the manipulation domains: the world model and its collision sync here; motion
     queries, IK and grasps, the refiners, articulated bodies and the trajectory output in the mixins."""
 
-    def __init__(self, layout: Layout, padding: float = PADDING):
-        from interlayer_pinocchio import CollisionWorld, Robot
+    def __init__(self, layout: Layout, padding: float = PADDING, robot=None):
+        from interlayer_pinocchio import CollisionWorld, describe
 
         self.layout = layout
         self.padding = padding
-        self.robot = Robot.load("pr2", torso_height=layout.extra.get("torso_height", 0.2), base_limits=base_limits(layout))
+        # the robot: problem.robot (a shipped name or a description's path), unless the domain built it
+        self.robot = robot or load_robot(describe(layout.extra.get("robot", "pr2")), layout.extra)
         self.cw = CollisionWorld(self.robot)
         for o in layout.fixed + layout.objects:
             T = pose4(*o.pose)
@@ -91,7 +92,7 @@ class ManipulationGeometry(MotionQueries, Reach, Refiners, Articulated, Output):
 
     def moved(self, before: World, after: World) -> set:
         """Objects whose pose differs between two worlds (picked up or put down in between),
-        articulated bodies whose joints do, and ``ROBOT_MOVED`` if the PR2's base, arms or grippers do."""
+        articulated bodies whose joints do, and ``ROBOT_MOVED`` if the robot's base, arms or grippers do."""
         out = set()
         for a, b in ((before.objects, after.objects), (before.joints, after.joints)):
             out |= {o for o in a.keys() | b.keys() if o not in a or o not in b or not np.array_equal(a[o], b[o])}
@@ -103,7 +104,7 @@ class ManipulationGeometry(MotionQueries, Reach, Refiners, Articulated, Output):
     def config(self, world: World) -> np.ndarray:
         r = self.robot
         q = r.default_q(world.base)
-        for arm in ARMS:
+        for arm in r.arms:
             r.group(f"{arm}_arm").write(q, world.arms[arm])  # in place: this runs at every sync
             g = world.grippers[arm]
             if g == "open":
@@ -180,3 +181,13 @@ class ManipulationGeometry(MotionQueries, Reach, Refiners, Articulated, Output):
                 cw.attach(name, arm, q)
         self._synced = world
         return q
+
+
+def load_robot(desc, extra: dict):
+    """The robot of ``desc`` as a layout's ``extra`` sets it up: its base limits and torso height (if it has a torso)."""
+    from interlayer_pinocchio import Robot
+
+    from .scene import BASE_LIMITS
+
+    torso = extra.get("torso_height", 0.2) if desc.torso else None
+    return Robot(desc, torso_height=torso, base_limits=extra.get("base_limits", BASE_LIMITS))

@@ -19,7 +19,7 @@ from interlayer.errors import UserError
 from interlayer.refine import StepOutcome
 from interlayer_manip.scene import REST_GAP
 from interlayer_manip.validate import upright
-from interlayer_manip.state import ARMS, PADDING, _failure, _holding, pose4, wrap
+from interlayer_manip.state import PADDING, _failure, _holding, pose4, wrap
 from interlayer_manip.world import ManipulationGeometry
 
 from .scene import ON_TOL, inside, top_name
@@ -37,7 +37,7 @@ class PBGeometry(ManipulationGeometry):
 
     def _start_arms(self, conf) -> dict:
         out = {}
-        for arm in ARMS:
+        for arm in self.robot.arms:
             g = self.robot.group(f"{arm}_arm")
             given = conf.get(arm, {})
             if not any(j in given for j in g.dof_names):
@@ -156,7 +156,7 @@ class PBGeometry(ManipulationGeometry):
         if g["home"]:
             if self.base_space.distance(np.asarray(world.base, float), np.asarray(self.layout.base, float)) > HOME_TOL:
                 out.append("goal not satisfied: the base is not back at its start pose")
-            for arm in ARMS:
+            for arm in self.robot.arms:
                 if arm not in world.held and np.max(np.abs(np.subtract(world.arms[arm], self.start_arms[arm]))) > HOME_TOL:
                     out.append(f"goal not satisfied: the {arm} arm is not back at its start configuration")
         if g["base"] and self.base_space.distance(np.asarray(world.base, float), np.asarray(g["base"], float)) > HOME_TOL:
@@ -212,7 +212,7 @@ class PBGeometry(ManipulationGeometry):
     def _tuck(self, world, motion, segs, acc):
         """Tuck every empty arm that is not (the start configuration may hold them out)."""
         w = world
-        for arm in ARMS:
+        for arm in self.robot.arms:
             if arm in w.held or np.allclose(w.arms[arm], self.robot.home(arm), atol=1e-9):
                 continue
             res = self._plan(motion, self.arm_query(w, arm, w.arms[arm], self.robot.home(arm), "tuck", acc), "transit",
@@ -227,7 +227,7 @@ class PBGeometry(ManipulationGeometry):
         w, failed = self.drive(world, self.layout.base, "go_home drive", segs, motion, acc)
         if failed:
             return failed
-        for arm in ARMS:
+        for arm in self.robot.arms:
             if arm in w.held or np.allclose(w.arms[arm], self.start_arms[arm], atol=1e-9):
                 continue
             res = self._plan(motion, self.arm_query(w, arm, w.arms[arm], self.start_arms[arm], "go_home arm", acc),

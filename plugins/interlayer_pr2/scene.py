@@ -16,38 +16,42 @@ TABLE_SIZE = (0.5, 1.6)  # x depth, y width
 STAGE = 0.05
 
 
-def _resting(shape, size, x, y, yaw=0.0):
-    h = size[1] if shape == "cylinder" else size[2]
-    return (float(x), float(y), TABLE_TOP + h / 2 + REST_GAP, float(yaw))
-
-
-def make_layout(seed: int, goal: str, grasps, target_radius: float, clutter: int = 0) -> Layout:
+def make_layout(seed: int, goal: str, grasps, target_radius: float, clutter: int = 0, top: float = TABLE_TOP,
+                base=None, extra=None, blocker_radius: float = 0.04, wider: float = 0.0) -> Layout:
     """``clutter`` extra cylinders (c1, c2, ...) stand at random free spots of the table, away from
-    the cubby and goal_spot (a first step towards the paper's Clutter-N)."""
+    the cubby and goal_spot (a first step towards the paper's Clutter-N). ``top``: the table top's
+    height (a fixed-base robot's scene puts it at the base's height), ``base``: the robot's, ``extra``:
+    more layout keys, ``blocker_radius``: narrower for a gripper that opens less than 9 cm, ``wider``: the
+    cubby's widening (m, each side) for a wider hand."""
+    def _resting(shape, size, x, y, yaw=0.0):
+        h = size[1] if shape == "cylinder" else size[2]
+        return (float(x), float(y), top + h / 2 + REST_GAP, float(yaw))
+
     rng = np.random.default_rng(seed)
     j = lambda s: float(rng.uniform(-s, s))  # noqa: E731
     tx, ty = TABLE_CENTRE
     sx, sy = TABLE_SIZE
-    fixed = [ObjectSpec("table", "box", (sx, sy, TABLE_TOP), (tx, ty, TABLE_TOP / 2, 0.0), movable=False)]
-    # The cubby: inner width 0.24 (y in [-0.12, 0.12]), from x = 0.63 to the back panel at x = 1.02.
+    fixed = [ObjectSpec("table", "box", (sx, sy, TABLE_TOP), (tx, ty, top - TABLE_TOP / 2, 0.0), movable=False)]
+    # The cubby: inner width 0.24 (y in [-0.12, 0.12]; + 2 x wider), from x = 0.63 to the back panel at x = 1.02.
     ph = 0.30
-    z = TABLE_TOP + ph / 2 + REST_GAP
+    z = top + ph / 2 + REST_GAP
     fixed += [
-        ObjectSpec("panel_left", "box", (0.40, 0.02, ph), (0.83, 0.13, z, 0.0), movable=False),
-        ObjectSpec("panel_right", "box", (0.40, 0.02, ph), (0.83, -0.13, z, 0.0), movable=False),
-        ObjectSpec("panel_back", "box", (0.02, 0.28, ph), (1.04, 0.0, z, 0.0), movable=False),
+        ObjectSpec("panel_left", "box", (0.40, 0.02, ph), (0.83, 0.13 + wider, z, 0.0), movable=False),
+        ObjectSpec("panel_right", "box", (0.40, 0.02, ph), (0.83, -0.13 - wider, z, 0.0), movable=False),
+        ObjectSpec("panel_back", "box", (0.02, 0.28 + 2 * wider, ph), (1.04, 0.0, z, 0.0), movable=False),
     ]
     r = target_radius
     objects = [
         ObjectSpec("target", "cylinder", (r, 0.14), _resting("cylinder", (r, 0.14), 0.88 + j(0.005), j(0.005))),
-        ObjectSpec("blocker", "cylinder", (0.04, 0.16), _resting("cylinder", (0.04, 0.16), 0.715 + j(0.005), j(0.005))),
+        ObjectSpec("blocker", "cylinder", (blocker_radius, 0.16),
+                   _resting("cylinder", (blocker_radius, 0.16), 0.715 + j(0.005), j(0.005))),
         ObjectSpec("can", "cylinder", (0.03, 0.12), _resting("cylinder", (0.03, 0.12), 0.80 + j(0.01), 0.50 + j(0.01))),
         ObjectSpec("box", "box", (0.05, 0.08, 0.14),
                    _resting("box", (0.05, 0.08, 0.14), 0.90 + j(0.01), -0.55 + j(0.01), j(0.3))),
     ]
     regions = {"table": (tx - sx / 2, tx + sx / 2, ty - sy / 2, ty + sy / 2),
                "goal_spot": (0.70, 0.90, -0.40, -0.24)}
-    keep_out = [(0.60, 1.08, -0.17, 0.17), regions["goal_spot"]]
+    keep_out = [(0.60, 1.08, -0.17 - wider, 0.17 + wider), regions["goal_spot"]]
     for k in range(clutter):
         for _ in range(500):
             r = float(rng.uniform(0.03, 0.04))
@@ -61,4 +65,7 @@ def make_layout(seed: int, goal: str, grasps, target_radius: float, clutter: int
             break
         else:
             raise ValueError(f"no free spot on the table for clutter object {k + 1}")
-    return Layout(fixed, objects, regions, "target", goal, tuple(grasps), extra={"stage": STAGE})
+    layout = Layout(fixed, objects, regions, "target", goal, tuple(grasps), extra={"stage": STAGE, **(extra or {})})
+    if base is not None:
+        layout.base = tuple(base)
+    return layout
