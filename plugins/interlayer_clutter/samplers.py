@@ -12,22 +12,49 @@ from interlayer_manip.scene import REST_GAP, base_limits, table_top
 from interlayer_manip.state import pose4, wrap
 
 
+def table_frame(layout) -> tuple:
+    """The table top in its own frame: (centre x, centre y, yaw, half length, half width). A layout whose
+    table is turned gives it as ``extra["table_frame"]``; else it is the axis-aligned ``regions["table"]``."""
+    given = layout.extra.get("table_frame")
+    if given is not None:
+        return tuple(float(v) for v in given)
+    xmin, xmax, ymin, ymax = layout.regions["table"]
+    return (xmin + xmax) / 2, (ymin + ymax) / 2, 0.0, (xmax - xmin) / 2, (ymax - ymin) / 2
+
+
+def in_frame(frame, x, y):
+    """World (x, y) in the coordinates (u, v) of ``frame`` (see :func:`table_frame`); arrays too."""
+    cx, cy, yaw = frame[:3]
+    c, s = math.cos(yaw), math.sin(yaw)
+    dx, dy = x - cx, y - cy
+    return c * dx + s * dy, c * dy - s * dx
+
+
+def from_frame(frame, u, v):
+    """The inverse of :func:`in_frame`."""
+    cx, cy, yaw = frame[:3]
+    c, s = math.cos(yaw), math.sin(yaw)
+    return cx + c * u - s * v, cy + s * u + c * v
+
+
 def base_near(geometry, x, y, rng, reach=(0.55, 0.95), heading=None):
     """A base pose facing (x, y) from outside the table, sampled around the table's sides; behind the
     tool when its ``heading`` is fixed (a given object pose and grasp: most sides cannot reach it).
     A fixed-base robot: where it stands."""
     if not geometry.robot.mobile:
         return tuple(geometry.layout.base)
-    xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
+    table = table_frame(geometry.layout)
     (lx, hx), (ly, hy) = base_limits(geometry.layout)
+    area = geometry.layout.extra.get("base_area")
     for _ in range(20):
         r = rng.uniform(*reach)
         a = rng.uniform(-math.pi, math.pi) if heading is None else heading + math.pi + rng.uniform(-0.8, 0.8)
         bx, by = x + r * math.cos(a), y + r * math.sin(a)
-        if xmin - 0.33 < bx < xmax + 0.33 and ymin - 0.33 < by < ymax + 0.33:
-            continue  # the base would stand under the table
-        if not (lx <= bx <= hx and ly <= by <= hy):
-            continue
+        u, v = in_frame(table, bx, by)
+        if abs(u) < table[3] + 0.33 and abs(v) < table[4] + 0.33:
+            continue  # the base would stand under the table (in the table's own frame: it may be turned)
+        if not (lx <= bx <= hx and ly <= by <= hy) or (area is not None and not area(bx, by)):
+            continue  # outside the base's limits, or (a layout that knows it) where the base cannot drive
         yaw = math.atan2(y - by, x - bx) + rng.uniform(-0.35, 0.35)
         return (float(bx), float(by), float(wrap(yaw)))
     return None
@@ -191,8 +218,9 @@ class ClutterSampler(EpochState):
     def spot_score(self, geometry, world, target, x, y, corridors=()):
         """Larger is better: near the table's edge (few objects between the arm and the spot), far from
         the target and clear of other objects, and never in ``corridors`` (see :meth:`corridors_for`)."""
-        xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
-        edge = min(x - xmin, xmax - x, y - ymin, ymax - y)
+        table = table_frame(geometry.layout)
+        u, v = in_frame(table, x, y)
+        edge = min(table[3] - abs(u), table[4] - abs(v))
         d_obj = min((math.hypot(x - Q[0, 3], y - Q[1, 3]) for Q in world.objects.values()), default=1.0)
         Tt = world.objects.get(target)
         d_t = math.hypot(x - Tt[0, 3], y - Tt[1, 3]) if Tt is not None else 1.0
@@ -349,12 +377,17 @@ def _table_spots(geometry, world, obj, rng, tries):
     table roomy spots are rare: many points are drawn at once (vectorized); the caller stops taking
     lists once it has what it needs (the draws do not depend on how many it takes)."""
     o = geometry.specs[obj]
-    xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
+    table = table_frame(geometry.layout)
     m = o.size[0] + 0.02
     z = table_top(geometry.layout) + o.height / 2 + REST_GAP
     n = max(tries, 40) * 25
-    far = min(xmax - m, base_limits(geometry.layout)[0][1] + PUT_REACH)  # beyond, no base pose puts anything down
-    pts = np.column_stack([rng.uniform(xmin + m, far, n), rng.uniform(ymin + m, ymax - m, n)])
+    # drawn in the table's own frame, within PUT_REACH of the base's limits (beyond, no base pose puts
+    # anything down): the corners of those limits, in the table's frame, bound the spots
+    (lx, hx), (ly, hy) = base_limits(geometry.layout)
+    cu, cv = in_frame(table, np.array([lx, hx, hx, lx]), np.array([ly, ly, hy, hy]))
+    u0, u1 = max(-table[3] + m, cu.min() - PUT_REACH), min(table[3] - m, cu.max() + PUT_REACH)
+    v0, v1 = max(-table[4] + m, cv.min() - PUT_REACH), min(table[4] - m, cv.max() + PUT_REACH)
+    pts = np.column_stack(from_frame(table, rng.uniform(u0, u1, n), rng.uniform(v0, v1, n)))
     reach = geometry.layout.extra.get("reach")
     if reach is not None:  # a fixed base (see clutter_layout): only where its arm reaches
         bx, by = geometry.layout.base[:2]
@@ -367,7 +400,7 @@ def _table_spots(geometry, world, obj, rng, tries):
         level = []
         for x, y in pts[ok][:tries]:
             with geometry.stats.timer("collision_checking"):
-                hits = geometry.cw.objects_overlap(obj, pose4(float(x), float(y), z, 0.0))
+                hits = geometry.cw.objects_overlap(obj, pose4(float(x), float(y), z, table[2]))
             if not hits & geometry.fixed:
                 level.append((float(x), float(y), z))
         yield level

@@ -18,7 +18,7 @@ from interlayer.names import Names
 from interlayer_manip.scene import Layout
 
 from .domain import SLOTS, pbjson_domain
-from .scene import area, read_scene, tops
+from .scene import area, oriented_box, read_scene, tops
 
 log = logging.getLogger("interlayer.pbjson")
 ARMS = ("left", "right")
@@ -80,11 +80,31 @@ BASE_RADIUS = 0.30  # m: a disk inside the PR2 base's 0.67 m square: where it ca
 BASE_TOP = 0.35  # m: fixed shapes reaching below this height stand in the base's way (walls, legs)
 
 
-def reachable_limits(fixed, start, xr, yr, res=0.04):
-    """The x and y ranges, within (xr, yr), of the base positions reachable from ``start``: a disk of
-    BASE_RADIUS flood-filled on a grid among the fixed shapes low enough to hit the base. It errs on the
-    reachable side, so no base pose outside is ever reachable (e.g. beyond a room's walls, where base
-    poses are collision-free but every drive to them fails)."""
+class ReachableArea:
+    """The base positions reachable from the start, on a grid (see :func:`reachable_area`). Called with
+    (x, y), it says whether a base may stand there: the area, not its axis-aligned box, so that in a
+    room turned in the world the corners of that box beyond the walls are not offered."""
+
+    def __init__(self, xs, ys, reach, res):
+        self.xs, self.ys, self.res = xs, ys, res
+        self.reach, self.grown = reach, _grown(reach)  # one cell more: the grid errs on the reachable side
+
+    def limits(self, xr, yr):
+        i, j = np.nonzero(self.reach)
+        xs, ys, res = self.xs, self.ys, self.res
+        return ((max(xr[0], float(xs[i.min()]) - res), min(xr[1], float(xs[i.max()]) + res)),
+                (max(yr[0], float(ys[j.min()]) - res), min(yr[1], float(ys[j.max()]) + res)))
+
+    def __call__(self, x, y) -> bool:
+        i, j = int(round((x - self.xs[0]) / self.res)), int(round((y - self.ys[0]) / self.res))
+        return 0 <= i < len(self.xs) and 0 <= j < len(self.ys) and bool(self.grown[i, j])
+
+
+def reachable_area(fixed, start, xr, yr, res=0.04):
+    """The base positions, within (xr, yr), reachable from ``start``: a disk of BASE_RADIUS flood-filled
+    on a grid among the fixed shapes low enough to hit the base; None when the start is too tight for the
+    disk (no conclusion). It errs on the reachable side, so no base pose outside is ever reachable (e.g.
+    beyond a room's walls, where base poses are collision-free but every drive to them fails)."""
     xs, ys = np.arange(xr[0], xr[1] + 1e-9, res), np.arange(yr[0], yr[1] + 1e-9, res)
     X, Y = np.meshgrid(xs, ys, indexing="ij")
     free = np.ones(X.shape, bool)
@@ -102,20 +122,29 @@ def reachable_limits(fixed, start, xr, yr, res=0.04):
     near = np.hypot(X - start[0], Y - start[1]) <= 2.5 * res
     reach = free & near
     if not reach.any():
-        return xr, yr  # the start is too tight for the disk: no conclusion
+        return None
     while True:
-        grown = reach.copy()
-        grown[1:] |= reach[:-1]
-        grown[:-1] |= reach[1:]
-        grown[:, 1:] |= reach[:, :-1]
-        grown[:, :-1] |= reach[:, 1:]
-        grown &= free
+        grown = _grown(reach) & free
         if (grown == reach).all():
             break
         reach = grown
-    i, j = np.nonzero(reach)
-    return ((max(xr[0], float(xs[i.min()]) - res), min(xr[1], float(xs[i.max()]) + res)),
-            (max(yr[0], float(ys[j.min()]) - res), min(yr[1], float(ys[j.max()]) + res)))
+    return ReachableArea(xs, ys, reach, res)
+
+
+def _grown(mask):
+    """The grid mask and its four neighbours of every cell in it."""
+    grown = mask.copy()
+    grown[1:] |= mask[:-1]
+    grown[:-1] |= mask[1:]
+    grown[:, 1:] |= mask[:, :-1]
+    grown[:, :-1] |= mask[:, 1:]
+    return grown
+
+
+def reachable_limits(fixed, start, xr, yr, res=0.04):
+    """The x and y ranges, within (xr, yr), of :func:`reachable_area` (all of them: no conclusion)."""
+    area = reachable_area(fixed, start, xr, yr, res)
+    return (xr, yr) if area is None else area.limits(xr, yr)
 
 
 def build_problem(scene, source, symbols) -> Problem:
@@ -125,18 +154,20 @@ def build_problem(scene, source, symbols) -> Problem:
     tables = [s for s in spots.values() if s.kind == "table"]
     # the single table's box: Clutter's base sampler keeps the base off it (several tables: a box far away,
     # and the base is kept off the tables by collision checks alone)
-    clutter_table, table = None, (1e9, 1e9, 1e9, 1e9)
+    clutter_table, table, table_frame = None, (1e9, 1e9, 1e9, 1e9), None
     if len(tables) == 1:
         xs, ys = [p[0] for p in tables[0].polygon], [p[1] for p in tables[0].polygon]
         table = (min(xs), max(xs), min(ys), max(ys))
+        table_frame = oriented_box(tables[0].polygon)  # the table's own frame: it may stand turned
         placing = any(scene.goals[k] for k in ("on", "stackings", "poses", "cleaned", "cooked"))
-        if not placing and abs(area(tables[0].polygon) - (table[1] - table[0]) * (table[3] - table[2])) < 1e-6:
+        if not placing and abs(area(tables[0].polygon) - 4 * table_frame[3] * table_frame[4]) < 1e-6:
             clutter_table = tables[0].name  # the paper's kind of scene: Clutter's put-down sampler applies as it is
     pts = [scene.base[:2]] + ([scene.goals["base"][:2]] if scene.goals["base"] else []) + [p for o in scene.fixed + scene.objects if o.name not in scene.floors
                               for p in [o.pose[:2]]]
     lo = (min(p[0] for p in pts) - 1.2, max(p[0] for p in pts) + 1.2)
     hi = (min(p[1] for p in pts) - 1.2, max(p[1] for p in pts) + 1.2)
-    lo, hi = reachable_limits([o for o in scene.fixed if o.name not in scene.floors], scene.base, lo, hi)
+    reach = reachable_area([o for o in scene.fixed if o.name not in scene.floors], scene.base, lo, hi)
+    lo, hi = (lo, hi) if reach is None else reach.limits(lo, hi)
     goals = scene.goals
     main_top = max((s.z for s in tables), default=0.8)
     torso = torso_height(scene)
@@ -146,8 +177,8 @@ def build_problem(scene, source, symbols) -> Problem:
     extra = {"table_top": float(main_top), "base_limits": (lo, hi), "torso_height": torso, "torso_conf": scene.torso,
              "supports": tuple(o.name for o in scene.fixed if any(_body(scene, o.name, s) for s in spots.values())),
              "surfaces": spots, "colors": scene.colors, "offsets": scene.offsets, "arms": scene.arms, "goals": goals,
-             "clutter_table": clutter_table, "camera": scene.camera, "notes": scene.notes,
-             "floors": [o for o in scene.fixed if o.name in scene.floors],  # drawn, not collided with
+             "clutter_table": clutter_table, "table_frame": table_frame, "base_area": reach, "camera": scene.camera,
+             "notes": scene.notes, "floors": [o for o in scene.fixed if o.name in scene.floors],  # drawn, not collided with
              "body_of": scene.body_of, "labels": symbols.labels}
     # the target (Clutter's samplers search harder for its grasps and keep put-downs out of its way): the
     # object to hold, else the one object a goal places

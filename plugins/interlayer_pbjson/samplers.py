@@ -22,7 +22,7 @@ from interlayer_clutter.samplers import ClutterSampler, fmt, in_corridors, putdo
 from interlayer_manip.scene import REST_GAP, _radius
 from interlayer_manip.state import pose4, wrap
 
-from .scene import inside, polygon_of
+from .scene import draw_in, inside, polygon_of
 
 
 class PBSampler(ClutterSampler):
@@ -62,9 +62,8 @@ class PBSampler(ClutterSampler):
         others = [(Q[0, 3], Q[1, 3], _radius(geometry.specs[k])) for k, Q in world.objects.items() if k not in (obj, below)]
         corridors = self.corridors_for(world, obj, geometry.layout.target)  # the best approaches found so far
         r = _radius(o)
-        xs, ys = [p[0] for p in poly], [p[1] for p in poly]
         spots = []
-        for x, y in np.column_stack([rng.uniform(min(xs), max(xs), 25 * tries), rng.uniform(min(ys), max(ys), 25 * tries)]):
+        for x, y in draw_in(poly, rng, 25 * tries):
             if not inside(poly, x, y, 0.005 if stacked else min(o.size[0], o.size[1]) / 2):
                 continue
             if any(math.hypot(x - a, y - b) < r + s + 0.02 for a, b, s in reserved):

@@ -208,6 +208,35 @@ def area(poly) -> float:
     return 0.5 * abs(sum(a[0] * b[1] - b[0] * a[1] for a, b in zip(poly, poly[1:] + poly[:1])))
 
 
+def oriented_box(poly) -> tuple:
+    """The smallest rectangle around a convex polygon, in the polygon's own frame: (centre x, centre y,
+    yaw, half length, half width), yaw within [-pi/4, pi/4] (a rectangle's sides give its axes, whatever
+    the world's)."""
+    pts = np.asarray(poly, float)
+    best = None
+    for (ax, ay), (bx, by) in zip(poly, poly[1:] + poly[:1]):
+        if math.hypot(bx - ax, by - ay) < 1e-12:
+            continue
+        yaw = (math.atan2(by - ay, bx - ax) + math.pi / 4) % (math.pi / 2) - math.pi / 4
+        c, s = math.cos(yaw), math.sin(yaw)
+        u, v = pts @ np.array([c, s]), pts @ np.array([-s, c])
+        size = (u.max() - u.min()) * (v.max() - v.min())
+        if best is None or size < best[0] - 1e-12:
+            mu, mv = (u.max() + u.min()) / 2, (v.max() + v.min()) / 2
+            best = (size, (float(c * mu - s * mv), float(s * mu + c * mv), float(yaw),
+                           float(u.max() - u.min()) / 2, float(v.max() - v.min()) / 2))
+    return best[1]
+
+
+def draw_in(poly, rng, n) -> np.ndarray:
+    """n points (x, y) drawn uniformly in the smallest box around a convex polygon, in the polygon's own
+    frame (see :func:`oriented_box`): as many land inside it however it is turned in the world."""
+    from interlayer_clutter.samplers import from_frame
+
+    box = oriented_box(poly)
+    return np.column_stack(from_frame(box, rng.uniform(-box[3], box[3], n), rng.uniform(-box[4], box[4], n)))
+
+
 def inside(poly, x, y, margin=0.0) -> bool:
     """(x, y) lies in the convex counter-clockwise polygon, at least ``margin`` from its edges."""
     for (ax, ay), (bx, by) in zip(poly, poly[1:] + poly[:1]):
