@@ -12,15 +12,24 @@ from interlayer_pr2.scene import REST_GAP, base_limits, table_top
 from interlayer_pr2.world import ARMS, pose4, wrap
 
 
+BASE_DRAWS = 20  # draws per base pose of a grasp search's budget, at most (most fall in walls and furniture)
+
+
 def base_near(geometry, x, y, rng, reach=(0.55, 0.95), heading=None):
     """A base pose facing (x, y) from outside the table, sampled around the table's sides; behind the
     tool when its ``heading`` is fixed (a given object pose and grasp: most sides cannot reach it)."""
     xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
     (lx, hx), (ly, hy) = base_limits(geometry.layout)
+    near = _cells_near(geometry.layout, x, y, reach, heading)
     for _ in range(20):
-        r = rng.uniform(*reach)
-        a = rng.uniform(-math.pi, math.pi) if heading is None else heading + math.pi + rng.uniform(-0.8, 0.8)
-        bx, by = x + r * math.cos(a), y + r * math.sin(a)
+        if near is not None:  # the reachable places in the annulus (or its part behind the tool) alone
+            if not len(near[0]):
+                return None
+            bx, by = near[0][rng.integers(len(near[0]))] + rng.uniform(-near[1] / 2, near[1] / 2, 2)
+        else:
+            r = rng.uniform(*reach)
+            a = rng.uniform(-math.pi, math.pi) if heading is None else heading + math.pi + rng.uniform(-0.8, 0.8)
+            bx, by = x + r * math.cos(a), y + r * math.sin(a)
         if xmin - 0.33 < bx < xmax + 0.33 and ymin - 0.33 < by < ymax + 0.33:
             continue  # the base would stand under the table
         if not (lx <= bx <= hx and ly <= by <= hy):
@@ -28,6 +37,32 @@ def base_near(geometry, x, y, rng, reach=(0.55, 0.95), heading=None):
         yaw = math.atan2(y - by, x - bx) + rng.uniform(-0.35, 0.35)
         return (float(bx), float(by), float(wrap(yaw)))
     return None
+
+
+def _cells_near(layout, x, y, reach, heading):
+    """(centres, cell size) of the layout's reachable base cells (``base_cells``: a walled scene's
+    flood fill) in the annulus ``reach`` around (x, y), within 0.8 rad of straight behind ``heading``;
+    None when the layout has no such cells. Uniform draws over the annulus mostly land in walls and
+    furniture there (95 % for an object in a kitchen's corner), and a search that stops after a fixed
+    number of draws then finds no base at all in some epochs."""
+    cells = layout.extra.get("base_cells")
+    if cells is None:
+        return None
+    centres, res = cells
+    key = (id(centres), float(x), float(y), tuple(reach), heading)
+    if _NEAR.get(key, (None,))[0] is not centres:  # a search asks about one spot many times
+        d = np.hypot(centres[:, 0] - x, centres[:, 1] - y)
+        keep = (d >= reach[0]) & (d <= reach[1])
+        if heading is not None:  # the direction from the spot to the cell, within 0.8 rad of heading + pi
+            a = np.arctan2(centres[:, 1] - y, centres[:, 0] - x)
+            keep &= np.abs(np.remainder(a - heading, 2 * math.pi) - math.pi) <= 0.8
+        if len(_NEAR) > 512:
+            _NEAR.clear()
+        _NEAR[key] = (centres, centres[keep])
+    return _NEAR[key][1], res
+
+
+_NEAR: dict = {}  # (id of the cells, x, y, reach, heading) -> (the cells, those in the annulus)
 
 
 def coarse_line(a, b, n=8):
@@ -133,12 +168,17 @@ class ClutterSampler(EpochState):
 
         # the other arm tucked and nothing held: the candidates must not depend on the world they were asked in
         w0 = replace(world, held={}, arms={a: tuple(TUCKED_ARMS[a]) for a in ARMS}, grippers={a: "closed" for a in ARMS})
-        for i in range(n_bases + 2 * tries):
-            if i >= n_bases and found:
+        # the budget counts base poses clear of fixed obstacles, not draws: around an object in a corner most
+        # draws hit the walls, and a search cut after a fixed number of draws found nothing in most epochs
+        free, draws = 0, 0
+        while free < n_bases + 2 * tries and draws < BASE_DRAWS * (n_bases + 2 * tries):
+            if free >= n_bases and found:
                 break  # past the first bases, only search on while nothing at all was found
+            draws += 1
             base = base_near(geometry, x, y, rng)
             if base is None or not _base_free(geometry, w0, base):
                 continue
+            free += 1
             w = replace(w0, base=base)
             for kind, T in grasp_poses(geometry, obj, P, _bearing(base, x, y), kinds, rng, n_side=2):
                 wps = _waypoints(geometry, w, arm, T, kind, rng, obj)

@@ -15,10 +15,11 @@ obstructions are learned with two arguments. What it adds:
   hands already full of objects whose goal poses are occupied (rearrangement: a permutation of poses).
 * ``(NoGrasp ?gp)``: the pick generator found no grasp for the reference ?gp = ``gpfg_<o>_<arm>`` (a
   failure of kind ``no_candidates``). Its candidates are sampled once per object pose in an epoch
-  and checked against fixed obstacles only (IK, the base's and the hand's collisions), so the verdict
-  holds for that arm while ?o stands where it is, whatever else moves; picking ?o with the other arm
-  (the only way it moves) deletes it, and a reset forgets it with every learned fact, to be sampled
-  anew. It lets a goal with a choice (hold any one of a class) turn to another object or arm.
+  and checked against fixed obstacles only (IK, the arm's and the base's collisions; the base with
+  the other arm as it is), so the verdict holds for that arm while ?o stands where it is, whatever
+  other objects do; picking ?o with the other arm (the only way it moves) deletes it, and a reset
+  forgets it with every learned fact, to be sampled anew. It lets a goal with a choice (hold any one
+  of a class) turn to another object or arm instead of giving up.
 * kitchen semantics as conditional effects: placing on a sink cleans, placing a clean object on a
   stove cooks.
 * ``go_home`` drives the base back to its start and the empty arms to their start configuration

@@ -71,7 +71,8 @@ def reachable_limits(fixed, start, xr, yr, res=0.04):
     """The x and y ranges, within (xr, yr), of the base positions reachable from ``start``: a disk of
     BASE_RADIUS flood-filled on a grid among the fixed shapes low enough to hit the base. It errs on the
     reachable side, so no base pose outside is ever reachable (e.g. beyond a room's walls, where base
-    poses are collision-free but every drive to them fails)."""
+    poses are collision-free but every drive to them fails). Also the centres of the reachable cells
+    (None when the start is too tight to conclude), where the base samplers draw from."""
     xs, ys = np.arange(xr[0], xr[1] + 1e-9, res), np.arange(yr[0], yr[1] + 1e-9, res)
     X, Y = np.meshgrid(xs, ys, indexing="ij")
     free = np.ones(X.shape, bool)
@@ -89,7 +90,7 @@ def reachable_limits(fixed, start, xr, yr, res=0.04):
     near = np.hypot(X - start[0], Y - start[1]) <= 2.5 * res
     reach = free & near
     if not reach.any():
-        return xr, yr  # the start is too tight for the disk: no conclusion
+        return xr, yr, None  # the start is too tight for the disk: no conclusion
     while True:
         grown = reach.copy()
         grown[1:] |= reach[:-1]
@@ -102,7 +103,8 @@ def reachable_limits(fixed, start, xr, yr, res=0.04):
         reach = grown
     i, j = np.nonzero(reach)
     return ((max(xr[0], float(xs[i.min()]) - res), min(xr[1], float(xs[i.max()]) + res)),
-            (max(yr[0], float(ys[j.min()]) - res), min(yr[1], float(ys[j.max()]) + res)))
+            (max(yr[0], float(ys[j.min()]) - res), min(yr[1], float(ys[j.max()]) + res)),
+            (np.column_stack([xs[i], ys[j]]), res))
 
 
 def build_problem(scene, source) -> Problem:
@@ -123,14 +125,14 @@ def build_problem(scene, source) -> Problem:
                               for p in [o.pose[:2]]]
     lo = (min(p[0] for p in pts) - 1.2, max(p[0] for p in pts) + 1.2)
     hi = (min(p[1] for p in pts) - 1.2, max(p[1] for p in pts) + 1.2)
-    lo, hi = reachable_limits([o for o in scene.fixed if o.name not in scene.floors], scene.base, lo, hi)
+    lo, hi, cells = reachable_limits([o for o in scene.fixed if o.name not in scene.floors], scene.base, lo, hi)
     goals = scene.goals
     main_top = max((s.z for s in tables), default=0.8)
     torso = torso_height(scene)
     if scene.torso is not None and torso > scene.torso + 1e-9:
         log.info("torso raised from %.3f (robots[0].conf) to %.3f m to reach surfaces at %.2f m", scene.torso, torso,
                  max((s.z for s in spots.values()), default=main_top))
-    extra = {"table_top": float(main_top), "base_limits": (lo, hi), "torso_height": torso, "torso_conf": scene.torso,
+    extra = {"table_top": float(main_top), "base_limits": (lo, hi), "base_cells": cells, "torso_height": torso, "torso_conf": scene.torso,
              "supports": tuple(o.name for o in scene.fixed if any(_body(o.name, s) for s in spots.values())),
              "surfaces": spots, "colors": scene.colors, "offsets": scene.offsets, "arms": scene.arms, "goals": goals,
              "clutter_table": clutter_table, "camera": scene.camera, "notes": scene.notes,
