@@ -569,3 +569,20 @@ def test_an_object_too_wide_to_grasp_proves_nothing_when_the_goal_lets_another_d
     wide["task"]["goal_holding"] = "a"
     with pytest.raises(Infeasible, match="a is 0.120 m wide"):
         check_graspable(load(tmp_path, wide, "alone.json"), "a")
+
+
+def test_no_grasp_of_one_object_sends_a_goal_with_a_choice_to_another(tmp_path, host):
+    """exists_*: hold a or b. Once the pick generator found no grasp of a for either arm (NoGrasp, learned
+    from its no_candidates failure), the task planner picks b; picking a with the other arm, the only
+    way a moves, forgets the verdict. Mutation: (not (NoGrasp ?gp)) dropped from pick's precondition."""
+    from interlayer.abstraction import abstract
+    from interlayer.domain import GroundStep
+
+    m = abstract(load(tmp_path, scene(goal_holding=["a", "b"])))
+    planner = host["task_planners"].get("fast-downward").factory({})
+    state = m.init | {("NoGrasp", "gpfg_a_left"), ("NoGrasp", "gpfg_a_right")}
+    res = planner.plan(m, state, 30)
+    assert res.status == "solved" and [s.args[0] for s in res.plan] == ["b"], res.plan
+    one = m.init | {("NoGrasp", "gpfg_a_left")}
+    after = m.progress(one, GroundStep("pick", ("a", "right", "left", "bpfg_a_right", "gpfg_a_right", "gpfg_a_left")))
+    assert ("NoGrasp", "gpfg_a_left") not in after
