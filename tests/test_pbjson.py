@@ -550,10 +550,10 @@ def test_an_approach_line_through_fast_joint_motion_is_split_not_refused():
         return SimpleNamespace(ik=ik, arm_space={"left": space})
 
     fast = geometry(lambda d: 8.0 * d)  # 0.4 rad per 5 cm
-    line = _line(fast, None, "left", None, lambda d: d, 0.2, np.array([0.0]), None)
+    line = _line(fast, None, "left", None, lambda d: d, 0.2, np.array([0.0]), None, splits=2)
     assert line is not None and np.isclose(line[-1][0], 1.6) and len(line) > 5
     flip = geometry(lambda d: 2.0 * d + (1.0 if d > 0.12 else 0.0))
-    assert _line(flip, None, "left", None, lambda d: d, 0.2, np.array([0.0]), None) is None
+    assert _line(flip, None, "left", None, lambda d: d, 0.2, np.array([0.0]), None, splits=2) is None
 
 
 def test_an_object_too_wide_to_grasp_proves_nothing_when_the_goal_lets_another_do(tmp_path):

@@ -13,6 +13,9 @@ from interlayer_pr2.world import ARMS, pose4, wrap
 
 
 BASE_DRAWS = 20  # draws per base pose of a grasp search's budget, at most (most fall in walls and furniture)
+# Clutter's and pybullet-planning's straight lines halve a step that moves the joints too far, up to twice
+# (interlayer_pr2.generators._line_step: a stretched arm reaching across a table, move_several_32)
+LINE_SPLITS = 2
 
 
 def base_near(geometry, x, y, rng, reach=(0.55, 0.95), heading=None):
@@ -181,7 +184,7 @@ class ClutterSampler(EpochState):
             free += 1
             w = replace(w0, base=base)
             for kind, T in grasp_poses(geometry, obj, P, _bearing(base, x, y), kinds, rng, n_side=2):
-                wps = _waypoints(geometry, w, arm, T, kind, rng, obj)
+                wps = _waypoints(geometry, w, arm, T, kind, rng, obj, splits=LINE_SPLITS)
                 if wps is None:
                     continue
                 wps = _with_hover(geometry, w, arm, T, wps, rng, obj)
@@ -328,9 +331,9 @@ def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None):
     put = geometry.ik(w, arm, T, rng, attempts=4)
     if put is None:
         return None
-    lower = _line(geometry, w, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, put, rng)
+    lower = _line(geometry, w, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, put, rng, splits=LINE_SPLITS)
     back = _line(geometry, w.with_gripper(arm, opened), arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, put, rng,
-                 gripper=opened)
+                 gripper=opened, splits=LINE_SPLITS)
     if lower is None or back is None:
         return None
     with geometry.stats.timer("collision_checking"):
@@ -363,7 +366,7 @@ def _with_hover(geometry, world, arm, T, wps, rng, obj):
     pre_T = T @ trans(-PRE_GRASP, 0, 0)
     opened = geometry.opening(obj, np.linalg.inv(T) @ world.objects[obj])
     down = _line(geometry, world.with_gripper(arm, opened), arm, pre_T, lambda d: trans(0, 0, d) @ pre_T, HOVER,
-                 approach[0], rng, (obj,), opened)
+                 approach[0], rng, (obj,), opened, LINE_SPLITS)
     if down is None or not geometry.static_path_ok(world.with_gripper(arm, opened), arm, down, (obj,)):
         return wps
     return tuple(reversed(down)) + tuple(approach[1:]), lift

@@ -145,7 +145,7 @@ def check_hand_fits(problem, world, obj):
                      f"and the goal needs {obj} moved")
 
 
-def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10, hand_check=False):
+def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10, hand_check=False, splits=0):
     """(approach, raise) for grasping ``obj`` at tool pose T: ``approach`` is a list of IK solutions
     along the straight line from the pre-grasp (PRE_GRASP behind T along the tool x axis) to T, each
     seeded by the next one; ``raise`` lifts the grasp by LIFT, then withdraws it by PRE_GRASP (back
@@ -163,15 +163,15 @@ def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10, hand_check=
     grasp = geometry.ik(world, arm, T, rng, ignore=ignore, gripper=opened, attempts=attempts)
     if grasp is None:
         return None
-    line = _line(geometry, world, arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, grasp, rng, ignore, opened)
+    line = _line(geometry, world, arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, grasp, rng, ignore, opened, splits)
     if line is None or not geometry.static_path_ok(world.with_gripper(arm, opened), arm, line, ignore):
         return None
-    up = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, grasp, rng, ignore, opened)
+    up = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, grasp, rng, ignore, opened, splits)
     if up is None:
         return None
     U = trans(0, 0, LIFT) @ T
     back_at = (lambda d: trans(0, 0, d) @ U) if kind == "top" else (lambda d: U @ trans(-d, 0, 0))
-    back = _line(geometry, world, arm, U, back_at, PRE_GRASP, up[-1], rng, ignore, opened)
+    back = _line(geometry, world, arm, U, back_at, PRE_GRASP, up[-1], rng, ignore, opened, splits)
     if back is None:
         return None
     lift = up + back[1:]
@@ -180,20 +180,21 @@ def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10, hand_check=
     return tuple(reversed(line)), tuple(lift[1:])
 
 
-def _line(geometry, world, arm, T, at, length, start, rng, ignore=(), gripper=None):
-    """IK solutions for at(0) = T, at(STEP), ..., at(length), each seeded by the previous one (a step
-    that moves the joints too far is split, see _line_step)."""
+def _line(geometry, world, arm, T, at, length, start, rng, ignore=(), gripper=None, splits=0):
+    """IK solutions for at(0) = T, at(STEP), ..., at(length), each seeded by the previous one (with
+    ``splits``, a step that moves the joints too far is split that many times, see _line_step)."""
     n = max(1, math.ceil(length / LINE_STEP - 1e-9))
     out = [start]
     for k in range(1, n + 1):
-        steps = _line_step(geometry, world, arm, at, length * (k - 1) / n, length * k / n, out[-1], rng, ignore, gripper)
+        steps = _line_step(geometry, world, arm, at, length * (k - 1) / n, length * k / n, out[-1], rng, ignore, gripper,
+                           splits)
         if steps is None:
             return None
         out += steps
     return out
 
 
-def _line_step(geometry, world, arm, at, d0, d1, prev, rng, ignore, gripper, splits: int = 2):
+def _line_step(geometry, world, arm, at, d0, d1, prev, rng, ignore, gripper, splits: int):
     """IK solutions from ``prev`` (at d0) to at(d1): one, or, when the joints move more than 0.35 rad
     on the way, the halves' (at most ``splits`` times). The joints of a nearly stretched arm move fast
     but continuously, so halving the step halves their move; a jump to another IK branch does not
