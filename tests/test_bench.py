@@ -272,3 +272,35 @@ def test_rows_of_one_name_in_two_suites_are_told_apart_in_the_plots():
     assert _label(("table1", "Dinner-2", "default", 120.0), groups) == "table1: Dinner-2"
     assert _label(("table1", "Drawer (O)", "default", 120.0), groups) == "Drawer (O)"
     assert _label(("table1", "Dinner-2", "default", 120.0), groups, suite=False) == "Dinner-2"  # a suite's own table
+
+
+def test_the_folder_suite_runs_every_file_of_the_users_folder_and_reports_each(tmp_path, capsys):
+    """pbjson-folder: one row per *.json file of --problems DIR (a file the loaders refuse is 'refused',
+    with check's sentence); the report gives every file not solved with its status and reason; a
+    missing folder or one without JSON is one line, exit 2.
+    Mutations: the rows no longer read from the folder (suite.py); UserError recorded as 'error' (worker.py)."""
+    from test_pbjson import scene
+
+    folder = tmp_path / "json"
+    folder.mkdir()
+    (folder / "hold.json").write_text(json.dumps(scene(goal_holding="a")))
+    (folder / "notes.json").write_text('{"not": "a problem"}')
+    (folder / "README.md").write_text("not a problem file")
+    db_path = tmp_path / "f.sqlite"
+    assert main(["bench", "--suite", "pbjson-folder", "--problems", str(folder), "--db", str(db_path),
+                 "--time-limit", "60", "--jobs", "1"]) == 0
+    got = {r["row"]: r for r in runs(db_path)}
+    assert sorted(got) == ["hold", "notes"], got
+    assert got["hold"]["status"] == "solved", got["hold"]["reason"]
+    assert got["notes"]["status"] == "refused" and "notes.json" in got["notes"]["reason"]
+    assert main(["report", str(db_path), "--out", str(tmp_path / "report")]) == 0
+    text = (tmp_path / "report" / "report.md").read_text()
+    assert "2 runs: 1 refused, 1 solved." in text or "2 runs: 1 solved, 1 refused." in text
+    assert "- notes [default] seed 0: refused: No installed plugin can read the problem file" in text
+    capsys.readouterr()
+    for problems, why in ((tmp_path / "nowhere", "does not exist"), (tmp_path / "report", "holds no *.json file")):
+        assert main(["bench", "--suite", "pbjson-folder", "--problems", str(problems), "--db", str(db_path)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and why in err, err
+    assert main(["bench", "--suite", "pbjson-folder", "--db", str(db_path)]) == 2
+    assert "give the folder with --problems DIR" in capsys.readouterr().err

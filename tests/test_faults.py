@@ -262,7 +262,7 @@ TRANSLATE = 'planner.translators=["templates", "wrong:{}"]'
     ("planner.task=wrong:sentence", "its task planner 'wrong:sentence' (plan) failed: it returned str 'pick then place', "
                                     "not a TaskPlanResult"),
     ("planner.task=wrong:done", "its task planner 'wrong:done' (plan) failed: it returned the status 'done', "
-                                "not one of solved, unsolvable, timeout, error"),
+                                "not one of solved, unsolvable, incomplete, timeout, error"),
     ("planner.motion=wrong:talks", "its motion planner 'wrong:talks' (plan) failed: it returned str 'a path', not a MotionPlan"),
     ("planner.motion=wrong:flat", "its motion planner 'wrong:flat' (plan) failed: it returned a path whose configuration 0 "
                                   "is ndarray array(0.), not 3 numbers"),

@@ -9,7 +9,7 @@ import pytest
 from interlayer.abstraction import abstract
 from interlayer.domain import ActionSpec, DomainSpec, GroundStep, Problem, Skolem
 from interlayer.loop import InterfaceLayer, LoopSettings
-from interlayer.refine import Candidate, Failure, Infeasible, StepOutcome
+from interlayer.refine import NO_CANDIDATES, Candidate, Failure, Infeasible, StepOutcome
 
 SPEC = DomainSpec(
     name="scripted",
@@ -568,3 +568,57 @@ def test_steps_the_goal_does_not_need_are_dropped_from_a_task_plan(host):
     assert result.status == "solved" and [str(s) for s in result.plan] == ["take(a, gp_a)"]
     assert events(result, "task_plan")[0]["unneeded"] == [{"action": "take", "args": ["b", "gp_b"]}]
     assert result.counts["refinement_attempts"] == 1
+
+
+CHOICE = DomainSpec(
+    name="scripted-choice",
+    types={"item": None},
+    continuous_types=("pose",),
+    predicates={"Done": ("item",), "Takeable": ("item",), "IsGP": ("pose", "item"), "NoCandidate": ("pose",)},
+    skolems=(Skolem("gp", ("item",), "pose", "IsGP"),),
+    geometric=("NoCandidate",),
+    actions=(
+        ActionSpec("take", (("?x", "item"), ("?p", "pose")),
+                   "(and (Takeable ?x) (not (Done ?x)) (IsGP ?p ?x) (not (NoCandidate ?p)))", "(Done ?x)",
+                   learn={NO_CANDIDATES: ("(NoCandidate ?p)",)}, pose_generator="scripted"),
+        ActionSpec("ready", (("?x", "item"),), "(not (Takeable ?x))", "(Takeable ?x)", pose_generator="scripted"),
+    ),
+)
+
+
+def test_an_empty_generator_teaches_a_fact_and_a_goal_with_a_choice_moves_on(host):
+    """Hold a or b: the shortest plan takes a, whose generator yields nothing; the fact the action learns
+    for that (NoCandidate gp_a) sends the task planner to b. Without it the run gave up.
+    Mutation: the partial pass no longer yields the no_candidates failure (refine.py)."""
+    def gen(problem, step, world, rng):
+        if step.args[0] != "a":
+            yield Candidate(("c0",), {}, f"c0-{rng.integers(1000)}")
+
+    problem = Problem(CHOICE, {"a": "item", "b": "item"}, frozenset({("Takeable", "a")}), "(or (Done a) (Done b))",
+                      ScriptedGeometry(lambda *a: None), {})
+    model = abstract(problem)
+    task = host["task_planners"].get("fast-downward").factory({})
+    translators = [("templates", host["failure_translators"].get("templates").factory)]
+    layer = InterfaceLayer(model, task, None, {"take": gen, "ready": gen}, translators, LoopSettings(time_limit=30.0))
+    result = layer.solve()
+    assert [str(s) for s in result.plan] == ["ready(b)", "take(b, gp_b)"], result.reason
+    assert ("NoCandidate", "gp_a") in result.learned_facts
+    [failure] = events(result, "failure")
+    assert failure["failure"]["kind"] == NO_CANDIDATES and failure["action"] == "take(a, gp_a)"
+
+
+def test_a_task_planner_without_a_proof_ends_the_run_gave_up(host):
+    """An incomplete search that finds no plan for the initial state proves nothing: 'gave_up' with its
+    reason, never 'unsolvable'. Mutation: loop.py's 'incomplete' branch removed (then: unsolvable)."""
+    from interlayer.planning import TaskPlanner
+
+    class Incomplete(TaskPlanner):
+        def _plan(self, model, state, timeout):
+            return "incomplete", [], "the search gave up (enforced hill-climbing is incomplete)", None
+
+    problem = Problem(SPEC, {"a": "item"}, frozenset({("Takeable", "a")}), "(Done a)", ScriptedGeometry(lambda *a: None), {})
+    layer = InterfaceLayer(abstract(problem), Incomplete(), None, {"take": generator()}, [], LoopSettings(time_limit=30.0))
+    result = layer.solve()
+    assert result.status == "gave_up"
+    assert result.reason == ("the task planner found no plan for the initial state without proving that none exists "
+                             "(the search gave up (enforced hill-climbing is incomplete))")

@@ -496,3 +496,92 @@ def test_a_put_down_base_must_leave_room_to_tuck_the_arm():
                   if _base_free(g, w2, base))
     assert not _base_free(g, raised, base, tuck="left")
     assert _base_free(g, raised, base, tuck="right")
+
+
+def alcove(tmp_path, width=0.45):
+    """A scene with ``a`` at the back of an alcove 2 x ``width`` m wide: about 2 % of the base poses
+    around it are clear of the walls."""
+
+    data = scene(goal_holding="b")
+    data["bodies"] = [
+        _body("counter", (2.1, 0.0, 0.0), [_box((0.2, width, 0.4), (0, 0, 0.4))]),
+        _body("back", (2.45, 0.0, 0.0), [_box((0.05, 1.0, 0.8), (0, 0, 0.8))]),
+        _body("wall1", (1.65, width + 0.05, 0.0), [_box((0.8, 0.05, 0.8), (0, 0, 0.8))]),
+        _body("wall2", (1.65, -width - 0.05, 0.0), [_box((0.8, 0.05, 0.8), (0, 0, 0.8))]),
+        _body("table", (0.3, 1.5, 0.0), [_box((0.3, 0.3, 0.4), (0, 0, 0.4))]),
+        _body("a", (2.05, 0.0, 0.801), [_box((0.03, 0.025, 0.08), (0, 0, 0.08))]),
+        _body("b", (0.3, 1.5, 0.801), [_box((0.03, 0.025, 0.08), (0, 0, 0.08))]),
+    ]
+    data["task"].update(object_names=["a", "b"], table_names=["counter", "table"], sink_names=[], stove_names=[],
+                        regions=[])
+    return load(tmp_path, data)
+
+
+def test_the_pick_generator_finds_grasps_again_after_every_reset(tmp_path):
+    """Issue 20 (sink_stove_2_4): an object at the back of an alcove was picked in the first epoch and
+    got no candidate after the resets. Each epoch's generator (reseeded as the loop does) finds its full
+    set of grasps: base poses are drawn where the base can stand and the search counts those, not draws.
+    Mutation: base_near's draws over the whole annulus again (no base_cells): epochs with 0 or 1 grasp."""
+    from interlayer.refine import stable_seed
+    from interlayer_pbjson.samplers import PBSampler
+
+    p = alcove(tmp_path)
+    w = p.geometry.initial_world()
+    for epoch in range(3):
+        sampler = PBSampler(stable_seed(0, epoch, PBSampler.__qualname__))
+        found = [len(sampler.grasp_candidates(p, w, "a", arm)) for arm in ("left", "right")]
+        assert min(found) >= 4, (epoch, found)
+
+
+def test_an_approach_line_through_fast_joint_motion_is_split_not_refused():
+    """A nearly stretched arm's joints move fast along a straight line: a 5 cm step that moves them more
+    than 0.35 rad is halved (they then move half as far) instead of refused; a jump to another IK branch
+    does not shrink when halved and is still refused. (Side grasps across a table's width, move_several_32.)
+    Mutation: _line without _line_step's split."""
+    from types import SimpleNamespace
+
+    from interlayer_manip.generators import _line
+
+    def geometry(config):
+        def ik(world, arm, T, rng, ignore=(), seed=None, attempts=2, gripper=None):
+            return np.array([config(T)])
+        space = SimpleNamespace(distance=lambda a, b: float(np.abs(a - b).max()))
+        return SimpleNamespace(ik=ik, arm_space={"left": space})
+
+    fast = geometry(lambda d: 8.0 * d)  # 0.4 rad per 5 cm
+    line = _line(fast, None, "left", None, lambda d: d, 0.2, np.array([0.0]), None, splits=2)
+    assert line is not None and np.isclose(line[-1][0], 1.6) and len(line) > 5
+    flip = geometry(lambda d: 2.0 * d + (1.0 if d > 0.12 else 0.0))
+    assert _line(flip, None, "left", None, lambda d: d, 0.2, np.array([0.0]), None, splits=2) is None
+
+
+def test_an_object_too_wide_to_grasp_proves_nothing_when_the_goal_lets_another_do(tmp_path):
+    """Hold a or b, a wider than the gripper opens: no proof (the pick generator finds nothing for a and
+    the task planner learns so); hold a alone: unsolvable, the width named. (Before: any goal that
+    mentioned a ended the run unsolvable.) Mutation: check_graspable tests the goal's text again."""
+    from interlayer.refine import Infeasible
+    from interlayer_manip.generators import check_graspable
+
+    wide = scene(goal_holding=["a", "b"])
+    wide["bodies"][3]["links"][0][0]["extents"] = [0.06, 0.06, 0.1]  # 0.12 m on every side
+    assert check_graspable(load(tmp_path, wide), "a") is False
+    wide["task"]["goal_holding"] = "a"
+    with pytest.raises(Infeasible, match="a is 0.120 m wide"):
+        check_graspable(load(tmp_path, wide, "alone.json"), "a")
+
+
+def test_no_grasp_of_one_object_sends_a_goal_with_a_choice_to_another(tmp_path, host):
+    """exists_*: hold a or b. Once the pick generator found no grasp of a for either arm (NoGrasp, learned
+    from its no_candidates failure), the task planner picks b; picking a with the other arm, the only
+    way a moves, forgets the verdict. Mutation: (not (NoGrasp ?gp)) dropped from pick's precondition."""
+    from interlayer.abstraction import abstract
+    from interlayer.domain import GroundStep
+
+    m = abstract(load(tmp_path, scene(goal_holding=["a", "b"])))
+    planner = host["task_planners"].get("fast-downward").factory({})
+    state = m.init | {("NoGrasp", "gpfg_a_left"), ("NoGrasp", "gpfg_a_right")}
+    res = planner.plan(m, state, 30)
+    assert res.status == "solved" and [s.args[0] for s in res.plan] == ["b"], res.plan
+    one = m.init | {("NoGrasp", "gpfg_a_left")}
+    after = m.progress(one, GroundStep("pick", ("a", "right", "left", "bpfg_a_right", "gpfg_a_right", "gpfg_a_left")))
+    assert ("NoGrasp", "gpfg_a_left") not in after

@@ -161,3 +161,24 @@ def test_the_plan_reader_is_made_before_the_runs_clock_starts(host):
     _plan_reader.cache_clear()
     planner.prepare(model)
     assert _plan_reader.cache_info().currsize == 1
+
+
+def test_an_incomplete_search_without_a_plan_is_no_proof(host):
+    """Enforced hill-climbing alone (FF's first search, no fallback) gives up on a dead state without
+    exploring it: 'incomplete', not 'unsolvable' (the loop ends such a run gave_up).
+    Mutation: the adapter maps 'incomplete' to 'unsolvable' again (interlayer_up/planner.py)."""
+    from interlayer_up.planner import FF_SEARCHES
+
+    # each step spends the one token: r2 is two steps away, so no plan exists, though the relaxed
+    # problem (tokens never spent) has one; the search stops at the first step's dead end
+    spec = DomainSpec(name="token", types={"room": None}, continuous_types=(),
+                      predicates={"At": ("room",), "Link": ("room", "room"), "Token": ()}, skolems=(),
+                      actions=(ActionSpec("step", (("?a", "room"), ("?b", "room")), "(and (At ?a) (Link ?a ?b) (Token))",
+                                          "(and (not (At ?a)) (At ?b) (not (Token)))"),))
+    rooms = ("r0", "r1", "r2")
+    model = abstract(Problem(spec, {r: "room" for r in rooms}, frozenset({("Link", "r0", "r1"), ("Link", "r1", "r2"),
+                                                                        ("At", "r0"), ("Token",)}), "(At r2)", None, {}))
+    planner = host["task_planners"].get("fast-downward").factory({"search": FF_SEARCHES[0]})
+    res = planner.plan(model, model.init, 30)
+    assert res.status == "incomplete" and "incomplete" in res.reason
+    assert host["task_planners"].get("ff").factory({}).plan(model, model.init, 30).status == "unsolvable"  # GBFS proves it

@@ -170,9 +170,7 @@ class UPTaskPlanner(TaskPlanner):
                 status, plan, reason = _solve(self.engine, params, problem, left, self.warm)
             if status != "incomplete":
                 break
-        if status == "incomplete":
-            status = "unsolvable"
-        if status != "solved":
+        if status != "solved":  # "incomplete" stays so: no plan found, none proved impossible
             return status, [], reason, None
         if self.validate == "every":
             with _UP_LOCK:
@@ -456,7 +454,7 @@ def _solve_locked(engine_name, params, problem, timeout, warm):
     if res.status in (S.INTERNAL_ERROR, S.UNSUPPORTED_PROBLEM):  # the engine failed: no word on the state
         last = [line.strip() for line in logs.splitlines() if line.strip()][-2:]
         return "error", None, f"the engine '{engine_name}' failed ({res.status.name}): {' '.join(last) or 'no message'}"
-    return "unsolvable", None, f"the task planner ended with {res.status.name} {logs}".strip()
+    return "incomplete", None, f"the task planner ended with {res.status.name} {logs}".strip()  # e.g. out of memory
 
 
 def _child(conn, engine_name, params, problem, timeout):

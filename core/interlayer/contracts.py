@@ -13,7 +13,7 @@ import numpy as np
 
 from .faults import ComponentFailed
 
-TASK_STATUSES = ("solved", "unsolvable", "timeout", "error")
+TASK_STATUSES = ("solved", "unsolvable", "incomplete", "timeout", "error")
 
 
 def shown(value) -> str:

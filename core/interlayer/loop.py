@@ -10,7 +10,7 @@ from .abstraction import TaskModel
 from .domain import GroundStep
 from .names import relabel
 from .deadline import Deadline, DeadlineExceeded
-from .refine import EpochState, Infeasible, PoseGenerator, Refinement, Refiner, drawn_within, stable_seed
+from .refine import NO_CANDIDATES, EpochState, Infeasible, PoseGenerator, Refinement, Refiner, drawn_within, stable_seed
 from .result import Result
 from .trace import Stats, Trace
 from .watchdog import NoProgress, ProgressWatch
@@ -103,7 +103,7 @@ class InterfaceLayer:
                 raise DeadlineExceeded(f"the task planner's call #{self.task_calls} took longer than "
                                        f"planner.task_timeout = {self.settings.task_timeout:g} s")
             raise DeadlineExceeded(where="the task planner")
-        self.last_task_status = res.status
+        self.last_task_status, self.last_task_reason = res.status, res.reason
         return plan if res.status == "solved" else None
 
     def make_generator(self, index: int, step: GroundStep, world) -> PoseGenerator:
@@ -269,8 +269,10 @@ class InterfaceLayer:
         plan = self.call_task_planner(init, 0)  # line 2
         if plan is None and (self.last_task_status == "timeout" or self._out_of_time()):
             return "timeout", f"the task planner found no plan for the initial state within the time limit of {self.settings.time_limit:g} s", None
+        if plan is None and self.last_task_status == "incomplete":  # no plan found, none proved impossible
+            return "gave_up", f"the task planner found no plan for the initial state without proving that none exists ({self.last_task_reason})", None
         if plan is None:
-            return "unsolvable", "the task planner found no plan for the initial state", None
+            return "unsolvable", "the task planner proved that the initial state has no plan", None
         self.plan, states = plan, self.progress_all(init, plan)
         world0 = self.geometry.initial_world()
         step, prefix, world = 0, {}, world0  # line 3
@@ -293,7 +295,7 @@ class InterfaceLayer:
                     return self._solved(init, world0, partial)
                 f = partial.fail_step
                 true, false = self.translate(partial.failure, self.plan[f])
-                if not true and not false:
+                if not true and not false and partial.failure.kind != NO_CANDIDATES:  # (the watch saw that one)
                     self.watch.untranslated(partial.failure, self.plan[f])
                 true, false = true - states[f], false & states[f]  # only what changes the state
                 facts = sorted(true) + [logic.negated(a) for a in sorted(false)]

@@ -10,7 +10,9 @@ from .domain import GroundStep
 
 @dataclass(frozen=True)
 class TaskPlanResult:
-    status: str  # "solved" | "unsolvable" | "timeout" | "error"
+    # "solved" | "unsolvable" (proved: the state has no plan) | "incomplete" (none found, nothing proved: an
+    # incomplete search, out of memory) | "timeout" | "error"
+    status: str
     plan: tuple = ()  # GroundSteps over the task planner's view (dropped args restored)
     time: float = 0.0
     reason: str = ""

@@ -17,6 +17,9 @@ Pose generators
     ``fn(problem, step, world, rng) -> iterable of Candidate``; raise ``Infeasible`` when a
     reference can never be instantiated. A generator that needs state between calls subclasses
     ``EpochState`` (registered as the class): the loop makes a fresh, reseeded instance per epoch.
+    A generator that yields nothing is a failure of kind ``NO_CANDIDATES``: an action's ``learn``
+    templates for that kind tell the task planner so (e.g. that the reference has no instance until
+    its object moves); the facts are forgotten at the next reset, like every learned fact.
 Motion planners
     subclass ``MotionPlanner`` and implement ``_plan(space, start, goal, is_valid, time_limit)``;
     domains describe each query as a ``MotionQuery`` over a ``ConfigSpace``.
@@ -45,7 +48,7 @@ from .motion import Clearance, ConfigSpace, InterpolatingPlanner, MotionPlan, Mo
 from .names import Names
 from .planning import TaskPlanner, TaskPlanResult
 from .plugins import Registry
-from .refine import ROBOT_MOVED, Candidate, EpochState, Failure, Geometry, Infeasible, StepOutcome
+from .refine import NO_CANDIDATES, ROBOT_MOVED, Candidate, EpochState, Failure, Geometry, Infeasible, StepOutcome
 from .trace import Stats
 
 
@@ -66,7 +69,8 @@ class Drawing(Protocol):
 __all__ = [
     "hookimpl", "Registry", "UserError", "PluginFault",
     "DomainSpec", "ActionSpec", "Skolem", "Problem", "GroundStep", "TaskModel",
-    "Geometry", "Candidate", "StepOutcome", "Failure", "Infeasible", "EpochState", "ROBOT_MOVED", "Drawing",
+    "Geometry", "Candidate", "StepOutcome", "Failure", "Infeasible", "EpochState", "ROBOT_MOVED", "NO_CANDIDATES",
+    "Drawing",
     "ConfigSpace", "MotionQuery", "MotionPlan", "MotionPlanner", "InterpolatingPlanner", "segment_valid", "points_valid",
     "Clearance", "Stats",
     "TaskPlanner", "TaskPlanResult", "translate_by_templates", "negated", "Names",

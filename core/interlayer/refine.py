@@ -62,6 +62,12 @@ class StepOutcome:
     candidate: Candidate | None = None  # what was refined (set by TryRefine on success)
 
 
+# The failure kind of a step whose pose generator yielded no candidate at all in this epoch (partial mode
+# yields it like a motion failure): an action's ``learn`` templates for it tell the task planner that its
+# reference has no instance here, e.g. ``{NO_CANDIDATES: ("(NoGrasp ?gp)",)}``
+NO_CANDIDATES = "no_candidates"
+
+
 class Infeasible(Exception):
     """Raised by a pose generator when a reference can never be instantiated (e.g. no grasp of an
     object fits the gripper): the run ends as unsolvable with this reason."""
@@ -243,6 +249,7 @@ class Refiner:
         worlds, outcomes = {step: world0}, dict(prefix)
         chain: list = []  # what was refined at each step from `step`: with world0, what step i's world depends on
         gens = {step: self.make_generator(step, plan[step], world0)} if step < n else {}
+        drawn = {step: 0}  # candidates each live generator yielded
         i, failures = step, {}
         blockers: dict = {}  # step -> the objects its failures named since its generator was made (see _obstructions)
         while step <= i < n:  # line 4
@@ -250,6 +257,10 @@ class Refiner:
                 return None
             gen = gens[i]
             cand = gen.get_next()
+            if cand is None and partial and not drawn.get(i):  # nothing to instantiate the step's references with
+                yield PartialRefinement({k: v for k, v in outcomes.items() if k < i}, worlds[i], i,
+                                        Failure(NO_CANDIDATES, detail=f"the pose generator of {plan[i].action} yielded "
+                                                                      f"no candidate"), Candidate((), {}, "no candidate"))
             if cand is None:  # lines 7-10: generator exhausted, backtrack
                 if not partial and self._futile(blockers.get(i), worlds[step], worlds[i]):
                     return None
@@ -272,6 +283,7 @@ class Refiner:
                 self._cache[key] = outcome
                 if not outcome.ok:
                     failures[i] = failures.get(i, 0) + 1
+            drawn[i] = drawn.get(i, 0) + 1
             self.on_attempt(step=i, candidate=cand, outcome=outcome, partial=partial, cached=cached)
             if outcome.ok:  # line 12
                 outcomes[i], worlds[i + 1] = replace(outcome, candidate=cand), outcome.world
@@ -280,6 +292,7 @@ class Refiner:
                 if i < n:
                     gens[i] = self.make_generator(i, plan[i], worlds[i])
                     blockers.pop(i, None)
+                    drawn[i] = 0
             else:
                 blockers[i] = _obstructions(outcome.failure, blockers.get(i, set()))
             if partial and not outcome.ok and outcome.failure is not None:  # lines 13-14

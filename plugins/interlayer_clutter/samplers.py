@@ -37,6 +37,12 @@ def from_frame(frame, u, v):
     return cx + c * u - s * v, cy + s * u + c * v
 
 
+BASE_DRAWS = 20  # draws per base pose of a grasp search's budget, at most (most fall in walls and furniture)
+# Clutter's and pybullet-planning's straight lines halve a step that moves the joints too far, up to twice
+# (interlayer_manip.generators._line_step: a stretched arm reaching across a table, move_several_32)
+LINE_SPLITS = 2
+
+
 def base_near(geometry, x, y, rng, reach=(0.55, 0.95), heading=None):
     """A base pose facing (x, y) from outside the table, sampled around the table's sides; behind the
     tool when its ``heading`` is fixed (a given object pose and grasp: most sides cannot reach it).
@@ -46,10 +52,16 @@ def base_near(geometry, x, y, rng, reach=(0.55, 0.95), heading=None):
     table = table_frame(geometry.layout)
     (lx, hx), (ly, hy) = base_limits(geometry.layout)
     area = geometry.layout.extra.get("base_area")
+    near = _cells_near(geometry.layout, x, y, reach, heading)
     for _ in range(20):
-        r = rng.uniform(*reach)
-        a = rng.uniform(-math.pi, math.pi) if heading is None else heading + math.pi + rng.uniform(-0.8, 0.8)
-        bx, by = x + r * math.cos(a), y + r * math.sin(a)
+        if near is not None:  # the reachable places in the annulus (or its part behind the tool) alone
+            if not len(near[0]):
+                return None
+            bx, by = near[0][rng.integers(len(near[0]))] + rng.uniform(-near[1] / 2, near[1] / 2, 2)
+        else:
+            r = rng.uniform(*reach)
+            a = rng.uniform(-math.pi, math.pi) if heading is None else heading + math.pi + rng.uniform(-0.8, 0.8)
+            bx, by = x + r * math.cos(a), y + r * math.sin(a)
         u, v = in_frame(table, bx, by)
         if abs(u) < table[3] + 0.33 and abs(v) < table[4] + 0.33:
             continue  # the base would stand under the table (in the table's own frame: it may be turned)
@@ -58,6 +70,32 @@ def base_near(geometry, x, y, rng, reach=(0.55, 0.95), heading=None):
         yaw = math.atan2(y - by, x - bx) + rng.uniform(-0.35, 0.35)
         return (float(bx), float(by), float(wrap(yaw)))
     return None
+
+
+def _cells_near(layout, x, y, reach, heading):
+    """(centres, cell size) of the layout's reachable base cells (``base_cells``: a walled scene's
+    flood fill) in the annulus ``reach`` around (x, y), within 0.8 rad of straight behind ``heading``;
+    None when the layout has no such cells. Uniform draws over the annulus mostly land in walls and
+    furniture there (95 % for an object in a kitchen's corner), and a search that stops after a fixed
+    number of draws then finds no base at all in some epochs."""
+    cells = layout.extra.get("base_cells")
+    if cells is None:
+        return None
+    centres, res = cells
+    key = (id(centres), float(x), float(y), tuple(reach), heading)
+    if _NEAR.get(key, (None,))[0] is not centres:  # a search asks about one spot many times
+        d = np.hypot(centres[:, 0] - x, centres[:, 1] - y)
+        keep = (d >= reach[0]) & (d <= reach[1])
+        if heading is not None:  # the direction from the spot to the cell, within 0.8 rad of heading + pi
+            a = np.arctan2(centres[:, 1] - y, centres[:, 0] - x)
+            keep &= np.abs(np.remainder(a - heading, 2 * math.pi) - math.pi) <= 0.8
+        if len(_NEAR) > 512:
+            _NEAR.clear()
+        _NEAR[key] = (centres, centres[keep])
+    return _NEAR[key][1], res
+
+
+_NEAR: dict = {}  # (id of the cells, x, y, reach, heading) -> (the cells, those in the annulus)
 
 
 def coarse_line(a, b, n=8):
@@ -165,15 +203,20 @@ class ClutterSampler(EpochState):
         arms = geometry.robot.arms
         w0 = replace(world, held={}, arms={a: tuple(geometry.robot.home(a)) for a in arms},
                      grippers={a: "closed" for a in arms})
-        for i in range(n_bases + 2 * tries):
-            if i >= n_bases and found:
+        # the budget counts base poses clear of fixed obstacles, not draws: around an object in a corner most
+        # draws hit the walls, and a search cut after a fixed number of draws found nothing in most epochs
+        free, draws = 0, 0
+        while free < n_bases + 2 * tries and draws < BASE_DRAWS * (n_bases + 2 * tries):
+            if free >= n_bases and found:
                 break  # past the first bases, only search on while nothing at all was found
+            draws += 1
             base = base_near(geometry, x, y, rng)
             if base is None or not _base_free(geometry, w0, base):
                 continue
+            free += 1
             w = replace(w0, base=base)
             for kind, T in grasp_poses(geometry, obj, P, _bearing(base, x, y), kinds, rng, n_side=2):
-                wps = _waypoints(geometry, w, arm, T, kind, rng, obj)
+                wps = _waypoints(geometry, w, arm, T, kind, rng, obj, splits=LINE_SPLITS)
                 if wps is None:
                     continue
                 wps = _with_hover(geometry, w, arm, T, wps, rng, obj)
@@ -321,9 +364,9 @@ def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None):
     put = geometry.ik(w, arm, T, rng, attempts=4)
     if put is None:
         return None
-    lower = _line(geometry, w, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, put, rng)
+    lower = _line(geometry, w, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, put, rng, splits=LINE_SPLITS)
     back = _line(geometry, w.with_gripper(arm, opened), arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, put, rng,
-                 gripper=opened)
+                 gripper=opened, splits=LINE_SPLITS)
     if lower is None or back is None:
         return None
     with geometry.stats.timer("collision_checking"):
@@ -356,7 +399,7 @@ def _with_hover(geometry, world, arm, T, wps, rng, obj):
     pre_T = T @ trans(-PRE_GRASP, 0, 0)
     opened = geometry.opening(obj, np.linalg.inv(T) @ world.objects[obj])
     down = _line(geometry, world.with_gripper(arm, opened), arm, pre_T, lambda d: trans(0, 0, d) @ pre_T, HOVER,
-                 approach[0], rng, (obj,), opened)
+                 approach[0], rng, (obj,), opened, LINE_SPLITS)
     if down is None or not geometry.static_path_ok(world.with_gripper(arm, opened), arm, down, (obj,)):
         return wps
     return tuple(reversed(down)) + tuple(approach[1:]), lift

@@ -78,11 +78,31 @@ def check_graspable(problem, name):
     rng = np.random.default_rng(0)
     found = any(grasp_poses(geometry, name, pose4(*o.pose), h, kinds, rng, n_side=1)
                 for h in np.linspace(-math.pi, math.pi, 8, endpoint=False))
-    if not found and name in problem.goal:
+    if not found and goal_needs(problem, name):
         width = 2 * o.size[0] if o.shape == "cylinder" else min(o.size[0], o.size[1])
         raise Infeasible(f"{name} is {width:.3f} m wide but the {geometry.robot.description.name} gripper opens only "
                          f"{geometry.robot.max_gripper_opening:.3f} m: no grasp exists")
     return found
+
+
+def goal_needs(problem, obj) -> bool:
+    """The goal cannot hold with every fact about ``obj`` as at the start, whatever the other facts are
+    (each taken as the goal wants it): only then does an object that cannot be grasped prove the problem
+    unsolvable. A goal with a choice (hold any one of a class) does not need any one of its objects."""
+    from interlayer import logic
+
+    def best(f, positive=True):  # f's truth with the other facts chosen in its favour (over-approximated)
+        if isinstance(f, logic.Pred):
+            atom = logic.ground_atom(f, {})
+            return (atom in problem.init) == positive if obj in atom[1:] else True
+        if isinstance(f, logic.Not):
+            return best(f.arg, not positive)
+        if isinstance(f, (logic.And, logic.Or)):
+            parts = [best(a, positive) for a in f.args]
+            return all(parts) if isinstance(f, logic.And) == positive else any(parts)
+        return True  # quantifiers, conditional effects: no conclusion
+
+    return not best(logic.parse(problem.goal))
 
 
 def check_hand_fits(problem, world, obj):
@@ -90,13 +110,9 @@ def check_hand_fits(problem, world, obj):
     hand, opened only as wide as the grasp needs, into a fixed obstacle (whatever the arm and base do:
     fixed obstacles never move). Boxes only (their grasps are finitely many), objects not riding on an
     articulated body; called when a pick generator found nothing, to say why."""
-    from interlayer import logic
-
     geometry = problem.geometry
     o = geometry.specs[obj]
-    needed = any(obj in p.args and logic.ground_atom(p, {}) not in problem.init
-                 for p, positive in logic.atoms_with_polarity(logic.parse(problem.goal)) if positive)
-    if o.shape != "box" or not needed or obj in world.riders or world.holder(obj) is not None:
+    if o.shape != "box" or not goal_needs(problem, obj) or obj in world.riders or world.holder(obj) is not None:
         return
     rng = np.random.default_rng(0)
     P = world.objects[obj]
@@ -132,7 +148,7 @@ def check_hand_fits(problem, world, obj):
                      f"and the goal needs {obj} moved")
 
 
-def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10, hand_check=False):
+def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10, hand_check=False, splits=0):
     """(approach, raise) for grasping ``obj`` at tool pose T: ``approach`` is a list of IK solutions
     along the straight line from the pre-grasp (PRE_GRASP behind T along the tool x axis) to T, each
     seeded by the next one; ``raise`` lifts the grasp by LIFT, then withdraws it by PRE_GRASP (back
@@ -150,15 +166,15 @@ def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10, hand_check=
     grasp = geometry.ik(world, arm, T, rng, ignore=ignore, gripper=opened, attempts=attempts)
     if grasp is None:
         return None
-    line = _line(geometry, world, arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, grasp, rng, ignore, opened)
+    line = _line(geometry, world, arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, grasp, rng, ignore, opened, splits)
     if line is None or not geometry.static_path_ok(world.with_gripper(arm, opened), arm, line, ignore):
         return None
-    up = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, grasp, rng, ignore, opened)
+    up = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, grasp, rng, ignore, opened, splits)
     if up is None:
         return None
     U = trans(0, 0, LIFT) @ T
     back_at = (lambda d: trans(0, 0, d) @ U) if kind == "top" else (lambda d: U @ trans(-d, 0, 0))
-    back = _line(geometry, world, arm, U, back_at, PRE_GRASP, up[-1], rng, ignore, opened)
+    back = _line(geometry, world, arm, U, back_at, PRE_GRASP, up[-1], rng, ignore, opened, splits)
     if back is None:
         return None
     lift = up + back[1:]
@@ -167,17 +183,35 @@ def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10, hand_check=
     return tuple(reversed(line)), tuple(lift[1:])
 
 
-def _line(geometry, world, arm, T, at, length, start, rng, ignore=(), gripper=None):
-    """IK solutions for at(0) = T, at(STEP), ..., at(length), each seeded by the previous one."""
-    space = geometry.arm_space[arm]
+def _line(geometry, world, arm, T, at, length, start, rng, ignore=(), gripper=None, splits=0):
+    """IK solutions for at(0) = T, at(STEP), ..., at(length), each seeded by the previous one (with
+    ``splits``, a step that moves the joints too far is split that many times, see _line_step)."""
     n = max(1, math.ceil(length / LINE_STEP - 1e-9))
     out = [start]
     for k in range(1, n + 1):
-        v = geometry.ik(world, arm, at(length * k / n), rng, ignore=ignore, seed=out[-1], attempts=2, gripper=gripper)
-        if v is None or space.distance(v, out[-1]) > 0.35:
+        steps = _line_step(geometry, world, arm, at, length * (k - 1) / n, length * k / n, out[-1], rng, ignore, gripper,
+                           splits)
+        if steps is None:
             return None
-        out.append(v)
+        out += steps
     return out
+
+
+def _line_step(geometry, world, arm, at, d0, d1, prev, rng, ignore, gripper, splits: int):
+    """IK solutions from ``prev`` (at d0) to at(d1): one, or, when the joints move more than 0.35 rad
+    on the way, the halves' (at most ``splits`` times). The joints of a nearly stretched arm move fast
+    but continuously, so halving the step halves their move; a jump to another IK branch does not
+    shrink. Without the split, side grasps across a table's width failed their approach line."""
+    v = geometry.ik(world, arm, at(d1), rng, ignore=ignore, seed=prev, attempts=2, gripper=gripper)
+    if v is None:
+        return None
+    if geometry.arm_space[arm].distance(v, prev) <= 0.35:
+        return [v]
+    if not splits:
+        return None
+    half = _line_step(geometry, world, arm, at, d0, (d0 + d1) / 2, prev, rng, ignore, gripper, splits - 1)
+    rest = half and _line_step(geometry, world, arm, at, (d0 + d1) / 2, d1, half[-1], rng, ignore, gripper, splits - 1)
+    return half + rest if rest else None
 
 
 def _bearing(base, x, y):

@@ -13,6 +13,13 @@ obstructions are learned with two arguments. What it adds:
   be put there until ?b is picked. Put-downs keep off goal poses, so nothing comes to occupy one later.
   Without it the task planner learns each occupant only after a failed put-down, typically with both
   hands already full of objects whose goal poses are occupied (rearrangement: a permutation of poses).
+* ``(NoGrasp ?gp)``: the pick generator found no grasp for the reference ?gp = ``gpfg_<o>_<arm>`` (a
+  failure of kind ``no_candidates``). Its candidates are sampled once per object pose in an epoch
+  and checked against fixed obstacles only (IK, the arm's and the base's collisions; the base with
+  the other arm as it is), so the verdict holds for that arm while ?o stands where it is, whatever
+  other objects do; picking ?o with the other arm (the only way it moves) deletes it, and a reset
+  forgets it with every learned fact, to be sampled anew. It lets a goal with a choice (hold any one
+  of a class) turn to another object or arm instead of giving up.
 * kitchen semantics as conditional effects: placing on a sink cleans, placing a clean object on a
   stove cooks.
 * ``go_home`` drives the base back to its start and the empty arms to their start configuration
@@ -26,6 +33,7 @@ so a holding-only file such as the paper's table grounds like Clutter-N.
 from __future__ import annotations
 
 from interlayer.domain import ActionSpec, DomainSpec, Skolem
+from interlayer.refine import NO_CANDIDATES
 
 SLOTS = 2
 
@@ -36,7 +44,7 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
         "On": ("obj", "surf"),
         "IsBPFG": ("bpose", "obj", "arm"), "IsGPFG": ("gpose", "obj", "arm"),
         "IsBPFPD": ("bpose", "obj", "arm", "surf", "slot"), "IsGPFPD": ("pdpose", "obj", "arm", "surf", "slot"),
-        "Obstructs": ("obj", "gpose"), "PDObstructs": ("obj", "pdpose"),
+        "Obstructs": ("obj", "gpose"), "PDObstructs": ("obj", "pdpose"), "NoGrasp": ("gpose",),
     }
     skolems = [
         Skolem("bpfg", ("obj", "arm"), "bpose", "IsBPFG", "a base pose from which arm can grasp obj"),
@@ -45,10 +53,10 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
         Skolem("gpfpd", ("obj", "arm", "surf", "slot"), "pdpose", "IsGPFPD", "a gripper pose putting obj on a stable spot of surf"),
     ]
     pick_pre = ["(HandEmpty ?arm)", "(Resting ?o)", "(IsBPFG ?bp ?o ?arm)", "(IsGPFG ?gp ?o ?arm)", "(Other ?arm ?arm2)",
-                "(IsGPFG ?gp2 ?o ?arm2)", "(forall (?b - obj) (not (Obstructs ?b ?gp)))"]
+                "(IsGPFG ?gp2 ?o ?arm2)", "(forall (?b - obj) (not (Obstructs ?b ?gp)))", "(not (NoGrasp ?gp))"]
     pick_eff = ["(Holding ?o ?arm)", "(not (HandEmpty ?arm))", "(not (Resting ?o))", "(forall (?s - surf) (not (On ?o ?s)))",
                 "(forall (?p - gpose) (not (Obstructs ?o ?p)))", "(forall (?p - pdpose) (not (PDObstructs ?o ?p)))",
-                "(forall (?b - obj) (and (not (Obstructs ?b ?gp)) (not (Obstructs ?b ?gp2))))"]
+                "(forall (?b - obj) (and (not (Obstructs ?b ?gp)) (not (Obstructs ?b ?gp2))))", "(not (NoGrasp ?gp2))"]
     place_pre = ["(Holding ?o ?arm)", "(IsBPFPD ?bp ?o ?arm ?s ?sl)", "(IsGPFPD ?pd ?o ?arm ?s ?sl)",
                  "(forall (?b - obj) (not (PDObstructs ?b ?pd)))"]
     place_eff = ["(not (Holding ?o ?arm))", "(HandEmpty ?arm)", "(Resting ?o)", "(On ?o ?s)"]
@@ -84,7 +92,8 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
             parameters=(("?o", "obj"), ("?arm", "arm"), ("?arm2", "arm"), ("?bp", "bpose"), ("?gp", "gpose"),
                         ("?gp2", "gpose")),
             precondition=f"(and {' '.join(pick_pre)})", effect=f"(and {' '.join(pick_eff)})",
-            learn={"obstruction": ("(Obstructs ?blocker ?gp)", "(Obstructs ?blocker2 ?gp2)")}, pose_generator="pbjson:pick"),
+            learn={"obstruction": ("(Obstructs ?blocker ?gp)", "(Obstructs ?blocker2 ?gp2)"),
+                   NO_CANDIDATES: ("(NoGrasp ?gp)",)}, pose_generator="pbjson:pick"),
         ActionSpec(
             name="place",
             parameters=(("?o", "obj"), ("?arm", "arm"), ("?s", "surf"), ("?sl", "slot"), ("?bp", "bpose"), ("?pd", "pdpose")),
@@ -109,6 +118,6 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
         continuous_types=("bpose", "gpose", "pdpose"),
         predicates=preds,
         skolems=tuple(skolems),
-        geometric=("Obstructs", "PDObstructs"),
+        geometric=("Obstructs", "PDObstructs", "NoGrasp"),
         actions=tuple(actions),
     )

@@ -99,6 +99,12 @@ class ReachableArea:
         i, j = int(round((x - self.xs[0]) / self.res)), int(round((y - self.ys[0]) / self.res))
         return 0 <= i < len(self.xs) and 0 <= j < len(self.ys) and bool(self.grown[i, j])
 
+    @property
+    def cells(self):
+        """(centres of the reachable cells, cell size): where the base samplers draw from."""
+        i, j = np.nonzero(self.reach)
+        return np.column_stack([self.xs[i], self.ys[j]]), self.res
+
 
 def reachable_area(fixed, start, xr, yr, res=0.04):
     """The base positions, within (xr, yr), reachable from ``start``: a disk of BASE_RADIUS flood-filled
@@ -174,7 +180,8 @@ def build_problem(scene, source, symbols) -> Problem:
     if scene.torso is not None and torso > scene.torso + 1e-9:
         log.info("torso raised from %.3f (robots[0].conf) to %.3f m to reach surfaces at %.2f m", scene.torso, torso,
                  max((s.z for s in spots.values()), default=main_top))
-    extra = {"table_top": float(main_top), "base_limits": (lo, hi), "torso_height": torso, "torso_conf": scene.torso,
+    extra = {"table_top": float(main_top), "base_limits": (lo, hi), "base_cells": None if reach is None else reach.cells,
+             "torso_height": torso, "torso_conf": scene.torso,
              "supports": tuple(o.name for o in scene.fixed if any(_body(scene, o.name, s) for s in spots.values())),
              "surfaces": spots, "colors": scene.colors, "offsets": scene.offsets, "arms": scene.arms, "goals": goals,
              "clutter_table": clutter_table, "table_frame": table_frame, "base_area": reach, "camera": scene.camera,

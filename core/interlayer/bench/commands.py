@@ -21,7 +21,7 @@ def cmd_bench(args) -> int:
         raise UserError(f"--time-limit must be a positive number of seconds, got {args.time_limit:g}.")
     seeds = parse_seeds(args.seeds) if args.seeds else None
     suite = load_suite(args.suite, quick=args.quick, seeds=seeds, time_limit=args.time_limit, combos=args.combo,
-                       overrides=args.set)
+                       overrides=args.set, problems=args.problems)
     summary = run_suite(suite, args.db, jobs=args.jobs, executor=args.executor,
                         memory_mb=args.memory_limit or DEFAULT_MEMORY_MB, grace=args.grace, keep_runs=args.keep_runs,
                         progress=not args.json)
@@ -50,6 +50,8 @@ def add_commands(sub) -> None:
     b.add_argument("--suite", default="table1",
                    help="a suite name from benchmarks/ (table1, clutter, gripper2d) or a suite .toml file (default table1)")
     b.add_argument("--db", required=True, metavar="FILE.sqlite", help="the results database (created; re-runs skip finished runs)")
+    b.add_argument("--problems", metavar="DIR",
+                   help="the folder whose files a folder suite runs (pbjson-folder: a checkout of pybullet-planning's problems/json)")
     b.add_argument("--quick", action="store_true", help="2 seeds per row with short time limits")
     b.add_argument("--seeds", metavar="SEEDS", help="seeds for every row, e.g. 0-9 or 0,3,5-7")
     b.add_argument("--time-limit", type=float, metavar="SECONDS", help="planner.time_limit of every run")

@@ -19,7 +19,7 @@ SCHEMA = """
 CREATE TABLE IF NOT EXISTS runs (
     suite TEXT NOT NULL, row TEXT NOT NULL, combo TEXT NOT NULL, seed INTEGER NOT NULL, time_limit REAL NOT NULL,
     config TEXT NOT NULL, overrides TEXT NOT NULL,      -- the config path and the JSON list of --set overrides
-    status TEXT NOT NULL, reason TEXT NOT NULL,         -- solved unsolvable gave_up timeout error invalid killed
+    status TEXT NOT NULL, reason TEXT NOT NULL,         -- solved unsolvable gave_up timeout refused error invalid killed
     time_total REAL, wall_time REAL, times TEXT,        -- the planner's total, the process's wall time, the split (JSON)
     plan_length INTEGER, plan_cost REAL, replans INTEGER, task_planner_calls INTEGER,
     peak_memory_mb REAL, versions TEXT, host TEXT, started TEXT, finished TEXT,

@@ -12,7 +12,7 @@ from pathlib import Path
 from . import db
 
 BEGIN, END = "<!-- BENCH-REPORT BEGIN -->", "<!-- BENCH-REPORT END -->"
-FAILED = ("unsolvable", "gave_up", "timeout", "error", "invalid", "killed")
+FAILED = ("unsolvable", "gave_up", "timeout", "refused", "error", "invalid", "killed")
 
 
 def _fmt(x, digits=1) -> str:
@@ -223,14 +223,23 @@ def split_png(data: dict, path: Path) -> bool:
     return True
 
 
-def failures(runs, limit=40) -> list:
+def failures(runs) -> list:
+    """Every run not solved with its status and reason (a folder suite's table of files), after the counts."""
     bad = [r for r in runs if r["status"] != "solved"]
     if not bad:
         return []
-    items = [f"{r['row']} [{r['combo']}] seed {r['seed']}: {r['status']}: {r['reason'][:200]}" for r in bad[:limit]]
-    if len(bad) > limit:
-        items.append(f"... and {len(bad) - limit} more")
-    return [("h2", "Runs not solved"), ("list", items)]
+    counts = defaultdict(int)
+    for r in runs:
+        counts[r["status"]] += 1
+    items = [f"{r['row']} [{r['combo']}] seed {r['seed']}: {r['status']}: {_one_line(r['reason'])}" for r in bad]
+    return [("h2", "Runs not solved"),
+            ("p", f"{len(runs)} runs: " + ", ".join(f"{n} {s}" for s, n in sorted(counts.items(), key=lambda c: -c[1])) + "."),
+            ("list", items)]
+
+
+def _one_line(text: str, limit: int = 300) -> str:
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def build(runs, rows, image_dir: Path) -> list:

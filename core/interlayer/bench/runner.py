@@ -22,7 +22,7 @@ from . import db
 from ..errors import UserError
 from .suite import Suite, mark_skipped
 
-STATUSES = ("solved", "unsolvable", "gave_up", "timeout", "error", "invalid", "killed")
+STATUSES = ("solved", "unsolvable", "gave_up", "timeout", "refused", "error", "invalid", "killed")
 DEFAULT_MEMORY_MB = 4096
 
 _live: set = set()  # worker processes running now (killed on Ctrl-C)

@@ -17,6 +17,10 @@ A suite file (TOML)::
     paper = { solved = 100, mean_time = 32 }   # optional published numbers (percent, seconds)
 
 Configs and overrides are all the core knows about a row: the domain comes from the config.
+
+A suite may instead run every file of a folder the user gives (``--problems DIR``): ``problems =
+"*.json"`` (a glob) in place of ``[[rows]]`` makes one row per matching file, named by the file's stem,
+in name order (``benchmarks/pbjson-folder.toml``: a checkout of pybullet-planning's problems/json).
 """
 from __future__ import annotations
 
@@ -95,12 +99,34 @@ def find_suite(name: str) -> Path:
     raise UserError(f"Unknown suite '{name}'; give a suite file (.toml) or one of: {', '.join(known) or 'none found'}.")
 
 
-def load_suite(name: str, quick: bool = False, seeds=None, time_limit=None, combos=(), overrides=()) -> Suite:
-    """The suite, with --quick / --seeds / --time-limit / --combo / --set applied (the CLI's options win)."""
+def folder_rows(path: Path, pattern, problems) -> list[dict]:
+    """A folder suite's rows: one per file of ``problems`` matching ``pattern``, named by its stem."""
+    if not isinstance(pattern, str) or not pattern.strip():
+        raise UserError(f"The suite {path}: problems must be a file pattern such as \"*.json\".")
+    if problems is None:
+        raise UserError(f"The suite '{path.stem}' runs every {pattern} file of a folder: give the folder with --problems DIR.")
+    folder = Path(problems).expanduser()
+    if not folder.is_dir():
+        raise UserError(f"The problems folder {folder} does not exist; give --problems an existing folder of {pattern} files.")
+    files = sorted(f for f in folder.glob(pattern) if f.is_file())
+    if not files:
+        raise UserError(f"The problems folder {folder} holds no {pattern} file; give --problems the folder that has them.")
+    return [{"name": f.stem, "config": str(f.resolve())} for f in files]
+
+
+def load_suite(name: str, quick: bool = False, seeds=None, time_limit=None, combos=(), overrides=(),
+               problems=None) -> Suite:
+    """The suite, with --quick / --seeds / --time-limit / --combo / --set / --problems applied (the CLI's
+    options win)."""
     from ..config import load_toml
 
     path = find_suite(name)
     data = load_toml(path)
+    if "problems" in data:
+        data["rows"] = folder_rows(path, data["problems"], problems)
+    elif problems is not None:
+        raise UserError(f"The suite '{path.stem}' has its own rows; --problems DIR is for a suite that runs a folder "
+                        f"(one whose file sets problems = \"*.json\", e.g. pbjson-folder).")
     if not isinstance(data.get("rows"), list) or not data["rows"]:
         raise UserError(f"The suite {path} has no [[rows]]; add at least one row with a name and a config.")
     quick_cfg = {**QUICK, **data.get("quick", {})} if quick else {}

@@ -93,8 +93,8 @@ def plan(spec: dict) -> dict:
         result = api.solve(spec["config"], overrides=spec["overrides"], host=host, origin=process_start())
         if spec.get("out"):
             api.write_outputs(result, spec["out"])
-    except UserError as exc:
-        return {"status": "error", "reason": str(exc)}
+    except UserError as exc:  # the problem or config refused (what 'interlayer check' says), not a crash
+        return {"status": "refused", "reason": str(exc)}
     data = result.to_json()
     return {"status": result.status, "reason": result.reason, "times": data["times"], "wall": data["wall"],
             "plan_length": len(result.plan) if result.solved else None,
