@@ -58,7 +58,7 @@ __all__ = ["Robot", "JointGroup", "CollisionWorld", "WorldObject", "Attachment",
            "box_link_urdf", "describe", "shipped_robots", "RobotDescription"]
 
 _WHERE = {
-    "Robot": "robot", "JointGroup": "robot",
+    "Robot": "robot", "JointGroup": "joints",
     "describe": "description", "shipped_robots": "description", "RobotDescription": "description",
     "CollisionWorld": "world", "WorldObject": "world", "Attachment": "world",
     "solve_ik": "ik",

@@ -19,7 +19,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from .robot import as_matrix, as_se3
+from .joints import as_matrix, as_se3
 
 __all__ = ["ArticulatedBody", "Shape"]
 

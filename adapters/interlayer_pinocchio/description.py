@@ -232,23 +232,20 @@ class _Reader:
         return data[key]
 
     def string(self, data: dict, field: str, key: str | None = None, default=None) -> str:
-        key = key or field.rsplit(".", 1)[-1]
-        if key not in data:
-            if default is not None:
-                return default
-            self.fail(field, "missing")
-        if not isinstance(data[key], str) or not data[key]:
-            self.fail(field, "must be a non-empty string")
-        return data[key]
+        return self._value(data, field, key, default, lambda v: isinstance(v, str) and v, "a non-empty string")
 
     def list(self, data: dict, field: str, key: str | None = None, default=None) -> list:
+        return self._value(data, field, key, default, lambda v: isinstance(v, list), "a list")
+
+    def _value(self, data: dict, field: str, key, default, ok, what: str):
+        """``data[key]`` (key: the field's last part), ``default`` when absent (None: required), checked by ``ok``."""
         key = key or field.rsplit(".", 1)[-1]
         if key not in data:
             if default is not None:
                 return default
             self.fail(field, "missing")
-        if not isinstance(data[key], list):
-            self.fail(field, "must be a list")
+        if not ok(data[key]):
+            self.fail(field, f"must be {what}")
         return data[key]
 
     def number(self, data: dict, field: str, key: str | None = None) -> float:

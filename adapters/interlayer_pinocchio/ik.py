@@ -17,7 +17,8 @@ import pinocchio as pin
 from interlayer import deadline as deadlines
 
 from .gripper import parent_link
-from .robot import Robot, as_se3, joint_group
+from .joints import as_se3, joint_group
+from .robot import Robot
 
 __all__ = ["solve_ik", "arm_ik", "ArmIK"]
 

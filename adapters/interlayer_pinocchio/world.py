@@ -24,7 +24,8 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from .robot import Robot, as_se3
+from .joints import as_se3
+from .robot import Robot
 
 __all__ = ["CollisionWorld", "WorldObject", "Attachment"]
 

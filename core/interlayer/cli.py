@@ -422,6 +422,35 @@ def cmd_export(args) -> int:
     return EXIT_OK
 
 
+def cmd_robot_check(args) -> int:
+    from .plugins import PluginHost
+
+    report = PluginHost().pm.hook.interlayer_check_robot(path=args.robot)
+    if report is None:
+        raise UserError("no installed plugin checks robot descriptions (the robot layer interlayer_pinocchio "
+                        "registers one: is the interlayer package installed with its entry points?)")
+    if args.json:
+        print(json.dumps(report))
+    else:
+        print("\n".join(_outline(report)))
+    return EXIT_OK
+
+
+def _outline(value, indent: str = "") -> list[str]:
+    """A JSON-ready report as indented ``key: value`` lines (lists of plain values on one line)."""
+    lines = []
+    for key, item in value.items():
+        if isinstance(item, dict):
+            lines += [f"{indent}{key}:"] + _outline(item, indent + "  ")
+        elif isinstance(item, list) and any(isinstance(x, dict) for x in item):
+            for x in item:
+                lines += [f"{indent}{key}:"] + _outline(x, indent + "  ")
+        else:
+            shown = ", ".join(map(str, item)) if isinstance(item, list) else item
+            lines.append(f"{indent}{key}: {shown}")
+    return lines
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="interlayer", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action=_Version, help="print the installed version and exit")
@@ -474,6 +503,13 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("-o", "--output", required=True, metavar="PATH", help="the bag folder or CSV file to write")
     e.add_argument("--json", action="store_true", help="print what was written as one JSON object to stdout")
     e.set_defaults(func=cmd_export)
+
+    r = sub.add_parser("robot", help="robot descriptions (see docs/robots.md)")
+    rsub = r.add_subparsers(dest="robot_command", required=True)
+    rc = rsub.add_parser("check", help="load a robot description and report what it found, or the error naming the field")
+    rc.add_argument("robot", metavar="NAME_OR_FILE", help="a shipped robot's name (pr2, panda, ...) or a description file")
+    rc.add_argument("--json", action="store_true", help="print the report as one JSON object to stdout")
+    rc.set_defaults(func=cmd_robot_check)
 
     from .bench.commands import add_commands  # bench, report
 

@@ -87,6 +87,18 @@ def interlayer_load_problem(path, params, seed):
     """
 
 
+@hookspec(firstresult=True)
+def interlayer_check_robot(path):
+    """Load a robot description and report what it found (``interlayer robot check``), or return None.
+
+    First result wins. The report is a JSON-ready dict (the robot layer's: its URDF, DOF, base, arms with
+    their chains, tool frames, reach and gripper range, the self-collision pairs skipped); a bad
+    description raises ``interlayer.errors.UserError`` naming the file and the field.
+
+    :param path: a shipped robot's name (``"panda"``) or the path of a description file (``.toml``).
+    """
+
+
 @hookspec
 def interlayer_on_event(event):
     """Observe every trace event of a run as it happens (progress displays, logging).

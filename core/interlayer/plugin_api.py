@@ -24,6 +24,9 @@ Task planners
 Failure translators
     ``fn(failure, step, model) -> set of atoms`` (atoms are tuples ``("Obstructs", "b2", "gp_b1")``;
     ``negated(atom)`` learns an atom false: the loop deletes it).
+Robots
+    the robot layer is the adapter ``interlayer_pinocchio`` (``Robot.load("panda")``, ``CollisionWorld``,
+    ``solve_ik``, ...: its package docstring); core names it needs are here (``Clearance``, ``Stats``).
 Errors
     raise ``UserError`` with one plain sentence for bad input (the CLI exits 2); any other exception
     from plugin code is reported as that plugin's fault (``PluginFault``).
@@ -37,10 +40,11 @@ from .domain import ActionSpec, DomainSpec, GroundStep, Problem, Skolem
 from .errors import UserError
 from .faults import PluginFault
 from .logic import negated
-from .motion import ConfigSpace, InterpolatingPlanner, MotionPlan, MotionPlanner, MotionQuery, points_valid, segment_valid
+from .motion import Clearance, ConfigSpace, InterpolatingPlanner, MotionPlan, MotionPlanner, MotionQuery, points_valid, segment_valid
 from .planning import TaskPlanner, TaskPlanResult
 from .plugins import Registry
 from .refine import ROBOT_MOVED, Candidate, EpochState, Failure, Geometry, Infeasible, StepOutcome
+from .trace import Stats
 
 
 class Drawing(Protocol):
@@ -62,5 +66,6 @@ __all__ = [
     "DomainSpec", "ActionSpec", "Skolem", "Problem", "GroundStep", "TaskModel",
     "Geometry", "Candidate", "StepOutcome", "Failure", "Infeasible", "EpochState", "ROBOT_MOVED", "Drawing",
     "ConfigSpace", "MotionQuery", "MotionPlan", "MotionPlanner", "InterpolatingPlanner", "segment_valid", "points_valid",
+    "Clearance", "Stats",
     "TaskPlanner", "TaskPlanResult", "translate_by_templates", "negated",
 ]

@@ -1,6 +1,8 @@
 """Robots from descriptions (interlayer_pinocchio.description, robot.py): the shipped PR2 reproduces the
 hard-coded PR2 class it replaced."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -49,3 +51,124 @@ def test_pr2_description_reproduces_the_old_pr2():
     assert robot.torso_height == 0.25
     assert robot.tool_frame("right") == "r_gripper_tool_frame"
 
+
+# -- descriptions: errors name their field ----------------------------------------------------------------
+
+PANDA = Path(__file__).parents[2] / "adapters" / "interlayer_pinocchio" / "robots" / "panda.toml"
+
+
+def _variant(tmp_path, old, new, name="robot.toml"):
+    text = PANDA.read_text()
+    assert old in text, old
+    path = tmp_path / name
+    path.write_text(text.replace(old, new))
+    return path
+
+
+@pytest.mark.parametrize("old, new, message", [
+    ('"panda_joint3", ', '"panda_joint_3", ', "robot.toml: arms[0].joints[2]: no joint 'panda_joint_3' in the URDF"),
+    ('tool_frame = "panda_hand_tcp"', 'tool_frame = "panda_hand_foo"',
+     "robot.toml: arms[0].tool_frame: no frame 'panda_hand_foo' in the URDF (frames with 'panda': "),
+    ('approach = "+z"', 'approach = "+w"', "robot.toml: arms[0].approach: '+w' is not an axis"),
+    ('closing = "y"', 'closing = "z"', "robot.toml: arms[0].closing: must be perpendicular to the approach axis"),
+    ('urdf = "example-robot-data:panda_description/urdf/panda.urdf"', 'urdf = "nowhere/panda.urdf"',
+     "robot.toml: robot.urdf: no file "),
+    ('panda_finger_joint2 = 1.0', 'panda_finger_joint9 = 1.0',
+     "robot.toml: arms[0].gripper.joints.panda_finger_joint9: no joint 'panda_finger_joint9' in the URDF"),
+    ('kind = "fixed"', 'kind = "wheels"', "robot.toml: base.kind: 'wheels' is not a base kind"),
+    ('home = [0.0, -0.785398, ', 'home = [-0.785398, ', "robot.toml: arms[0].home: give 7 numbers, not 6"),
+])
+def test_a_description_error_names_its_field(tmp_path, old, new, message):
+    from interlayer.errors import UserError
+
+    with pytest.raises(UserError) as info:
+        Robot.load(_variant(tmp_path, old, new))
+    assert str(info.value).startswith(message), str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_an_unknown_robot_name_lists_the_shipped_ones():
+    from interlayer.errors import UserError
+
+    with pytest.raises(UserError, match=r"unknown robot 'pandaa' \(did you mean 'panda'\?\).*shipped robots are .*pr2"):
+        Robot.load("pandaa")
+
+
+# -- self-collision pairs sampled when the description gives none ----------------------------------------
+
+def _link_pairs(robot):
+    objs = robot.collision_model.geometryObjects
+    return {frozenset(robot.model.frames[objs[i].parentFrame].name for i in (cp.first, cp.second))
+            for cp in robot.collision_model.collisionPairs}
+
+
+def test_self_collision_pairs_are_sampled_without_an_srdf_and_cached(tmp_path, monkeypatch):
+    from interlayer_pinocchio import selfcollision
+
+    monkeypatch.setenv("INTERLAYER_CACHE_DIR", str(tmp_path / "cache"))
+    path = _variant(tmp_path, 'srdf = "example-robot-data:panda_description/srdf/panda.srdf"\n', "")
+    robot = Robot.load(path)
+    assert robot.self_collision_source == "sampled"
+    sampled = _link_pairs(robot)
+    with_srdf = _link_pairs(Robot.load("panda"))
+    # adjacent links (also through the geometry-less panda_link8) and the hand's own parts are never checked
+    for a, b in (("panda_link0", "panda_link1"), ("panda_link7", "panda_hand"), ("panda_hand", "panda_leftfinger")):
+        assert frozenset((a, b)) not in sampled
+    # links that can meet are: the hand and the base, the fingers and the shoulder; close to the SRDF's choice
+    for a, b in (("panda_hand", "panda_link0"), ("panda_leftfinger", "panda_link1"), ("panda_link1", "panda_link7")):
+        assert frozenset((a, b)) in sampled
+    assert len(sampled ^ with_srdf) <= 4, sorted(map(sorted, sampled ^ with_srdf))
+    assert len(list((tmp_path / "cache" / "selfcollision").rglob("*.json"))) == 1
+
+    def no_sampling(*args, **kwargs):
+        raise AssertionError("sampled again: the cache was not read")
+
+    monkeypatch.setattr(selfcollision, "sampled_skips", no_sampling)
+    assert _link_pairs(Robot.load(path)) == sampled
+
+
+def test_listed_skip_pairs_are_never_checked(tmp_path):
+    path = _variant(tmp_path, 'srdf = "example-robot-data:panda_description/srdf/panda.srdf"\n', "")
+    path.write_text(path.read_text() + '\n[self_collision]\nskip = [["panda_link0", "panda_link1"], '
+                    '["panda_hand", "panda_link0"]]\n')
+    robot = Robot.load(path)
+    assert robot.self_collision_source == "listed"
+    pairs = _link_pairs(robot)
+    assert frozenset(("panda_hand", "panda_link0")) not in pairs and frozenset(("panda_link0", "panda_link1")) not in pairs
+    assert frozenset(("panda_hand", "panda_link1")) in pairs
+
+
+# -- a tool axis other than x: the Panda approaches along its hand's z --------------------------------------
+
+def test_panda_canonical_tool_frame_points_out_of_the_hand():
+    robot = Robot.load("panda")
+    assert robot.arms == ("arm",) and not robot.mobile
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        q = robot.random_q(rng)
+        T = robot.tool_pose(q, "arm")
+        tcp = robot.frame_pose(q, "panda_hand_tcp")
+        hand = robot.frame_pose(q, "panda_hand")
+        np.testing.assert_allclose(T[:3, 3], tcp[:3, 3], atol=1e-12)  # same point, turned
+        np.testing.assert_allclose(T[:3, 0], tcp[:3, 2], atol=1e-12)  # x = the hand's z: out of the hand
+        np.testing.assert_allclose(T[:3, 1], tcp[:3, 1], atol=1e-12)  # y = the closing axis
+        out = (tcp[:3, 3] - hand[:3, 3]) / np.linalg.norm(tcp[:3, 3] - hand[:3, 3])
+        assert out @ T[:3, 0] > 0.999
+    closed, widest = robot.gripper_range("arm")
+    assert abs(closed) < 1e-3 and widest == pytest.approx(0.08, abs=1e-3)  # two fingers of 0.04 m
+    assert robot.gripper_links("arm")[0] == "panda_hand_0"
+    assert {g.split("_")[1] for g in robot.gripper_links("arm")} == {"hand", "leftfinger", "rightfinger"}
+
+
+def test_the_robot_layers_public_names_are_documented():
+    """A robot plugin imports the robot layer's names from the package (docs/plugins.md lists them)."""
+    import interlayer_optim.timing
+    import interlayer_pinocchio
+
+    doc = (Path(__file__).parents[2] / "docs" / "plugins.md").read_text()
+    for name in interlayer_pinocchio.__all__:
+        obj = getattr(interlayer_pinocchio, name)
+        assert (obj.__doc__ or "").strip(), f"{name} has no docstring"
+        assert f"`{name}" in doc, f"{name} is not in docs/plugins.md's robot layer table"
+    assert callable(interlayer_optim.timing.time_parameterize)
+    assert "`interlayer_optim.timing.time_parameterize(" in doc and "`interlayer_meshcat.add_pinocchio_robot(" in doc
