@@ -1,5 +1,8 @@
 """Every shipped robot description: it loads, rests without self-collision, and its gripper's measured opening
 is the gap its fingers really leave around an object held at the tool point."""
+import re
+from pathlib import Path
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -131,3 +134,21 @@ def test_a_base_height_lifts_the_whole_robot():
     q = low.default_q()
     np.testing.assert_allclose(high.tool_pose(q, "arm")[:3, 3] - low.tool_pose(q, "arm")[:3, 3], (0, 0, 0.75))
     assert high.base_pose(q)[2, 3] == 0.75
+
+
+@pytest.mark.parametrize("edit, field", [
+    (("tool_offset = [0.0, 0.0, 0.04]", "tool_offset = [0.0, 0.04]"), "arms[0].tool_offset: give 3 numbers"),
+    (("kind = \"fixed\"", "kind = \"fixed\"\nheight = \"high\""), "base.height: must be a number"),
+    (("opening = [0.055, 0.055]", "opening = [0.055, 0.055]\n[arms.gripper.joints]\nwrist_3_joint = 0"),
+     "arms[0].gripper.joints: give each finger joint with a non-zero multiplier"),
+])
+def test_a_bad_tool_offset_height_or_fixed_gripper_names_its_field(tmp_path, edit, field):
+    from interlayer.errors import UserError
+    from interlayer_pinocchio import describe
+
+    text = (Path(describe("ur5_gripper").path)).read_text()
+    assert edit[0] in text
+    bad = tmp_path / "ur5.toml"
+    bad.write_text(text.replace(edit[0], edit[1]))
+    with pytest.raises(UserError, match=re.escape(f"ur5.toml: {field}")):
+        describe(bad)
