@@ -238,7 +238,7 @@ def test_front_put_downs_are_searched_within_reach_of_the_near_side():
     offered (every try there failed: IK and base sampling for nothing)."""
     import numpy as np
     from interlayer_clutter.samplers import _table_spots
-    from interlayer_pr2.scene import base_limits
+    from interlayer_manip.scene import base_limits
 
     problem = _problem(["problem.objects=40", "problem.approach=front", "planner.seed=6"])
     geometry = problem.geometry
@@ -326,7 +326,7 @@ def test_equally_clear_grasps_come_nearest_to_the_robot_first():
     from dataclasses import replace
 
     from interlayer_clutter.samplers import ClutterSampler
-    from interlayer_pr2.world import wrap
+    from interlayer_manip.state import wrap
 
     problem = _problem(["problem.objects=15", "planner.seed=0"])
     world = problem.geometry.initial_world()

@@ -126,7 +126,7 @@ def test_a_pr2_run_gives_the_same_trajectory_on_a_slow_machine_and_a_fast_clock(
     """The same seed on a machine 'loaded' two ways: every collision check slowed down, and the
     Python clock running 10 times faster. Motion queries count work (state checks), so both runs
     refine the same plan into the same trajectory; a wall-clock budget per query would not."""
-    from interlayer_pr2.world import PR2Geometry
+    from interlayer_manip.world import ManipulationGeometry
 
     config = {"problem.clutter": 3, "motion_planner.time_limit": 0.05, "planner.seed": 1,
               "planner.time_limit": 6000}
@@ -134,7 +134,7 @@ def test_a_pr2_run_gives_the_same_trajectory_on_a_slow_machine_and_a_fast_clock(
     idle = api.solve(example, config)
     assert idle.status == "solved", idle.reason
 
-    timed = PR2Geometry._timed
+    timed = ManipulationGeometry._timed
 
     def slowed(self, fn, acc):
         def slow(v):
@@ -147,7 +147,7 @@ def test_a_pr2_run_gives_the_same_trajectory_on_a_slow_machine_and_a_fast_clock(
 
     real_clock = time.perf_counter
     start = real_clock()
-    monkeypatch.setattr(PR2Geometry, "_timed", slowed)
+    monkeypatch.setattr(ManipulationGeometry, "_timed", slowed)
     monkeypatch.setattr(time, "perf_counter", lambda: start + 10 * (real_clock() - start))
     loaded = api.solve(example, config)
     monkeypatch.undo()

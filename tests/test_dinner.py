@@ -10,7 +10,7 @@ import pytest
 from interlayer.abstraction import abstract
 from interlayer.domain import GroundStep
 
-from interlayer_pr2.scene import ObjectSpec
+from interlayer_manip.scene import ObjectSpec
 
 
 def _problem(n=4, seed=0, **params):
@@ -131,7 +131,7 @@ def tray_run(host):
     from interlayer_dinner import generators
     from interlayer_dinner.scene import make_layout
     from interlayer_dinner.world import DinnerGeometry
-    from interlayer_pr2.scene import REST_GAP
+    from interlayer_manip.scene import REST_GAP
 
     layout = make_layout(0, 4)
     cup = next(o for o in layout.objects if layout.extra["kinds"][o.name] == "cup")
@@ -160,7 +160,7 @@ def tray_run(host):
 
 def _check(geometry, plan, trajectory):
     from interlayer_dinner import validate
-    from interlayer_pr2.validate import validate_trajectory
+    from interlayer_manip.validate import validate_trajectory
 
     rules = types.SimpleNamespace(event=validate.event, motion=validate.motion, rests=validate.rests,
                                   goal=lambda geometry, world: [])  # the objects stay in room A

@@ -18,7 +18,7 @@ from test_pr2_plan import EXAMPLE, hold_run  # noqa: F401  (module-scoped fixtur
 
 def test_pr2_viewer_plays_motions_in_real_time(hold_run):
     from interlayer_meshcat.visualizer import FPS
-    from interlayer_pr2.draw import _in_real_time
+    from interlayer_manip.draw import _in_real_time
 
     _, out = hold_run
     seg = _arm_segment(json.loads((out / "trajectory.json").read_text()))
@@ -115,7 +115,7 @@ def pr2_problem():
 
 def _reach_query(problem):
     """Left arm: from an IK solution in front of the robot 16 cm straight forward and down."""
-    from interlayer_pr2.world import pose4
+    from interlayer_manip.state import pose4
 
     g = problem.geometry
     w = g.initial_world()

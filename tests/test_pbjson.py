@@ -112,7 +112,7 @@ def test_initial_pose_goal_holds_at_the_start_and_after_a_return(tmp_path):
     assert ("AtGoalPose", "a") in p.init
     P = w.objects["a"]
     assert g.at_goal_pose("a", P)
-    from interlayer_pr2.world import pose4, rz
+    from interlayer_manip.state import pose4, rz
 
     assert g.at_goal_pose("a", P @ rz(math.pi / 2))  # a square box: any quarter turn is the same pose
     assert not g.at_goal_pose("a", pose4(P[0, 3] + 0.05, P[1, 3], P[2, 3], 0.0))
@@ -153,7 +153,7 @@ def test_a_goal_pose_is_reached_from_behind_the_tool(tmp_path, monkeypatch):
     from interlayer_clutter import samplers
     from interlayer_clutter.samplers import base_near
     from interlayer_pbjson.samplers import PBSampler
-    from interlayer_pr2.generators import grasp_poses
+    from interlayer_manip.generators import grasp_poses
 
     p = load(tmp_path, scene(goal_poses={"b": [1, 0, 0, 0, 1.35, -0.2, 0.751]}))
     g = p.geometry
@@ -202,7 +202,7 @@ def test_clean_and_cook_semantics(tmp_path):
     assert ("Cleaned", "a") in clean and ("On", "a", "sink") in clean
     assert ("Cooked", "a") in place(clean, "stove")
     g = p.geometry
-    from interlayer_pr2.world import pose4
+    from interlayer_manip.state import pose4
 
     on = {"sink": pose4(0.0, 1.2, 0.802, 0.0), "stove": pose4(0.0, -1.2, 0.802, 0.0)}  # resting on their tops
     rel = lambda k: {"kind": "release", "arm": "left", "object": "a", "pose": on[k].tolist()}  # noqa: E731
@@ -217,7 +217,7 @@ def test_a_stacking_placement_is_sampled_on_the_top_of_the_object_below(tmp_path
 
     from interlayer.domain import GroundStep
     from interlayer_pbjson.samplers import PBSampler
-    from interlayer_pr2.generators import grasp_poses
+    from interlayer_manip.generators import grasp_poses
 
     p = load(tmp_path, scene(goal_stackings={"b": "a"}))
     g = p.geometry
@@ -415,7 +415,7 @@ def test_the_base_stays_inside_the_walls_around_it(tmp_path):
     """Base poses beyond a room's walls are collision-free but no drive reaches them: the base's limits
     end at the walls (a wall with a doorway wide enough for the base does not stop it)."""
     from interlayer_pbjson.loader import reachable_limits
-    from interlayer_pr2.scene import ObjectSpec
+    from interlayer_manip.scene import ObjectSpec
 
     def wall(name, x, y, sx, sy):
         return _body(name, (x, y, 0.2), [_box((sx / 2, sy / 2, 0.2))])
@@ -469,14 +469,14 @@ def test_a_box_whose_every_grasp_puts_the_fingers_into_a_wall_is_unsolvable_nami
     path.write_text(json.dumps(wall_scene(gap=0.025)))  # as nonmonotonic_4_1.json's green0: the fingers are thicker
     result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=60"])
     assert result.status == "unsolvable"
-    assert "every grasp of a that fits the gripper puts the PR2's fingers into wall" in result.reason, result.reason
+    assert "every grasp of a that fits the gripper puts the pr2's fingers into wall" in result.reason, result.reason
 
 
 @needs_shared
 def test_nonmonotonic_green0_is_unsolvable_because_the_fingers_do_not_fit_beside_the_wall():
     result = api.solve(str(SHARED / "nonmonotonic_4_1.json"), ["planner.time_limit=120"])
     assert result.status == "unsolvable"
-    assert "every grasp of green0 that fits the gripper puts the PR2's fingers into obst1" in result.reason, result.reason
+    assert "every grasp of green0 that fits the gripper puts the pr2's fingers into obst1" in result.reason, result.reason
 
 
 @needs_shared
@@ -485,7 +485,7 @@ def test_a_put_down_base_must_leave_room_to_tuck_the_arm():
     raised, but the tucked left elbow (how every put-down ends) hits kitchen_table."""
     from dataclasses import replace
 
-    from interlayer_pr2.generators import _base_free
+    from interlayer_manip.generators import _base_free
 
     g = api.prepare(str(SHARED / "kitchen.json")).problem.geometry
     base = (0.17, 1.18, 0.86)

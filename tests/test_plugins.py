@@ -71,4 +71,4 @@ def test_the_plugin_api_documents_everything_it_exports():
 
 def test_builtin_domains_declare_their_drawing(host):
     assert host["domains"].get("gripper2d").drawing == "interlayer_gripper2d.draw"
-    assert host["domains"].get("pr2").drawing == "interlayer_pr2.draw"
+    assert host["domains"].get("pr2").drawing == "interlayer_manip.draw"

@@ -131,7 +131,7 @@ def test_move_base_samples_afresh_in_another_world():
 
     from interlayer.api import prepare
     from interlayer.domain import GroundStep
-    from interlayer_pr2.generators import move_base
+    from interlayer_manip.generators import move_base
 
     run = prepare(EXAMPLE, ["planner.seed=0"])
     world = run.problem.geometry.initial_world()
@@ -149,8 +149,8 @@ def test_a_grasp_whose_hand_hits_a_panel_is_rejected_without_ik():
     import numpy as np
 
     from interlayer.api import prepare
-    from interlayer_pr2.generators import _waypoints
-    from interlayer_pr2.world import pose4
+    from interlayer_manip.generators import _waypoints
+    from interlayer_manip.state import pose4
 
     run = prepare(EXAMPLE, ["planner.seed=0"])
     geo = run.problem.geometry
@@ -204,8 +204,8 @@ def test_the_cubby_transit_goes_through_the_staging_point():
     from interlayer.api import prepare
     from interlayer.domain import GroundStep
     from interlayer.motion import InterpolatingPlanner
-    from interlayer_pr2.generators import move_base
-    from interlayer_pr2.world import trans
+    from interlayer_manip.generators import move_base
+    from interlayer_manip.state import trans
 
     run = prepare(EXAMPLE, ["planner.seed=0"])
     geo = run.problem.geometry
@@ -247,7 +247,7 @@ def test_the_blockwise_fine_check_agrees_with_checking_every_point():
     import numpy as np
 
     from interlayer.api import prepare
-    from interlayer_pr2.world import FINE_BLOCK
+    from interlayer.motion import BLOCK as FINE_BLOCK
 
     geo = prepare(EXAMPLE, ["planner.seed=0"]).problem.geometry
     world = geo.initial_world()

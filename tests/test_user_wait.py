@@ -404,10 +404,10 @@ DISCOVERY = """
 import json, sys
 from interlayer.plugins import PluginHost
 host = PluginHost()
-heavy = ["pinocchio", "coal", "numpy", "interlayer_pr2.generators", "interlayer_gripper2d.generators"]
+heavy = ["pinocchio", "coal", "numpy", "interlayer_manip.generators", "interlayer_gripper2d.generators"]
 before = [m for m in heavy if m in sys.modules]
 pick = host["pose_generators"].get("pr2:pick").factory
-print(json.dumps({"before": before, "after": "interlayer_pr2.generators" in sys.modules, "module": pick.__module__}))
+print(json.dumps({"before": before, "after": "interlayer_manip.generators" in sys.modules, "module": pick.__module__}))
 """
 
 
@@ -415,7 +415,7 @@ def test_discovering_plugins_imports_no_domain_library():
     proc = subprocess.run([sys.executable, "-c", DISCOVERY], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
-    assert data == {"before": [], "after": True, "module": "interlayer_pr2.generators"}
+    assert data == {"before": [], "after": True, "module": "interlayer_manip.generators"}
 
 
 def test_a_component_registered_by_name_that_cannot_be_imported_is_its_plugins_fault():

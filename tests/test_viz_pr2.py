@@ -1,4 +1,4 @@
-"""The PR2 domain draws itself for the meshcat visualizer (interlayer_pr2.draw): `interlayer viz` /
+"""The PR2 domain draws itself for the meshcat visualizer (interlayer_manip.draw): `interlayer viz` /
 `interlayer explain` pages of a real pr2_pick run, the replayed animation, headless-Chromium renders."""
 from __future__ import annotations
 
@@ -59,7 +59,7 @@ def test_the_visualizer_finds_the_pr2_drawer(run):
 def test_draw_scene_objects_robot_and_mapping(run):
     from interlayer_meshcat import Scene
 
-    from interlayer_pr2.draw import draw_scene
+    from interlayer_manip.draw import draw_scene
 
     geometry = run.problem.geometry
     scene = Scene("t")
@@ -85,7 +85,7 @@ def test_draw_scene_objects_robot_and_mapping(run):
 def test_animation_replays_base_arms_and_held_object(run):
     from interlayer_meshcat import Scene
 
-    from interlayer_pr2.draw import animation_frames, draw_scene
+    from interlayer_manip.draw import animation_frames, draw_scene
 
     geometry, traj = run.problem.geometry, run.trajectory
     scene = Scene("a")
@@ -104,7 +104,7 @@ def test_animation_replays_base_arms_and_held_object(run):
     T_start = frames[0]["target"]
     assert np.linalg.norm(T_end[:3, 3] - T_start[:3, 3]) > 0.05  # it was carried
     # replay the final arm state as the frames do and compare with the tool pose
-    from interlayer_pr2.draw import _State
+    from interlayer_manip.draw import _State
 
     st = _State(geometry, traj["initial"])
     for s in traj["steps"]:
@@ -120,7 +120,7 @@ def test_animation_replays_base_arms_and_held_object(run):
 
 
 def test_a_gripper_opened_only_as_wide_as_a_grasp_needs_is_drawn_at_that_width(run):
-    from interlayer_pr2.draw import _State
+    from interlayer_manip.draw import _State
 
     geometry, traj = run.problem.geometry, run.trajectory
     robot = geometry.robot

@@ -19,8 +19,8 @@ chosen for Fast Downward's speed with 40 objects (see docs/benchmarks.md):
 from __future__ import annotations
 
 from interlayer.domain import ActionSpec, DomainSpec, Problem, Skolem
-from interlayer_pr2.scene import Layout
-from interlayer_pr2.world import ARMS
+from interlayer_manip.scene import Layout
+from interlayer_manip.params import held_by_some_arm
 
 SLOTS = 2
 
@@ -78,17 +78,19 @@ CLUTTER_DOMAIN = DomainSpec(
 
 
 
-def clutter_problem(layout: Layout, source: dict, name: str, slots: int = SLOTS) -> Problem:
-    from interlayer_pr2.world import PR2Geometry
+def clutter_problem(layout: Layout, source: dict, name: str, slots: int = SLOTS, robot=None) -> Problem:
+    from interlayer_manip.world import ManipulationGeometry
 
-    geometry = PR2Geometry(layout)
+    geometry = ManipulationGeometry(layout, robot=robot)
     names = [o.name for o in layout.objects]
     slot_names = [f"s{k + 1}" for k in range(slots)]
     objects = {o: "obj" for o in names}
-    objects.update({a: "arm" for a in ARMS})
+    arms = geometry.robot.arms
+    objects.update({a: "arm" for a in arms})
     objects.update({s: "slot" for s in slot_names})
-    init = {("HandEmpty", a) for a in ARMS} | {("Other", "left", "right"), ("Other", "right", "left")}
+    # Other: each arm and another (a one-armed robot's arm is its own "other": pick's ?gp2 is then ?gp)
+    init = {("HandEmpty", a) for a in arms} | {("Other", a, b) for a in arms for b in arms if a != b or len(arms) == 1}
     init |= {("OnTable", o) for o in names}
     t = layout.target
-    goal = f"(or (Holding {t} left) (Holding {t} right))"
+    goal = held_by_some_arm(t, arms)
     return Problem(CLUTTER_DOMAIN, objects, frozenset(init), goal, geometry, source, name=name)

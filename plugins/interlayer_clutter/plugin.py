@@ -1,11 +1,11 @@
 """Registers Clutter-N (the paper's cluttered table) and its pose generators."""
 from interlayer import hookimpl
 
-PARAMS = {"objects": 15, "approach": "free"}
+PARAMS = {"objects": 15, "approach": "free", "robot": "pr2"}
 
 
 def make_problem(params, seed):
-    from interlayer_pr2.plugin import timing
+    from interlayer_manip.params import timing
 
     from .scene import make_clutter_problem
 
@@ -16,11 +16,12 @@ def make_problem(params, seed):
 
 @hookimpl
 def interlayer_register_domains(registry):
-    from interlayer_pr2.plugin import TIMING
+    from interlayer_manip.params import TIMING
 
     registry.add("clutter", make_problem,
-                 "the paper's cluttered table (Clutter-N): a PR2 must hold one of N cylinders, clearing those in the way",
-                 params={**PARAMS, **TIMING}, drawing="interlayer_pr2.draw")
+                 "the paper's cluttered table (Clutter-N): a robot (problem.robot, default the PR2) must hold one of N "
+                 "cylinders, clearing those in the way",
+                 params={**PARAMS, **TIMING}, drawing="interlayer_manip.draw")
 
 
 @hookimpl

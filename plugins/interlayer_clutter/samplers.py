@@ -7,14 +7,17 @@ from dataclasses import replace
 
 import numpy as np
 from interlayer.refine import Candidate, EpochState
-from interlayer_pr2.generators import _base_free
-from interlayer_pr2.scene import REST_GAP, base_limits, table_top
-from interlayer_pr2.world import ARMS, pose4, wrap
+from interlayer_manip.generators import _base_free
+from interlayer_manip.scene import REST_GAP, base_limits, table_top
+from interlayer_manip.state import pose4, wrap
 
 
 def base_near(geometry, x, y, rng, reach=(0.55, 0.95), heading=None):
     """A base pose facing (x, y) from outside the table, sampled around the table's sides; behind the
-    tool when its ``heading`` is fixed (a given object pose and grasp: most sides cannot reach it)."""
+    tool when its ``heading`` is fixed (a given object pose and grasp: most sides cannot reach it).
+    A fixed-base robot: where it stands."""
+    if not geometry.robot.mobile:
+        return tuple(geometry.layout.base)
     xmin, xmax, ymin, ymax = geometry.layout.regions["table"]
     (lx, hx), (ly, hy) = base_limits(geometry.layout)
     for _ in range(20):
@@ -99,9 +102,11 @@ class ClutterSampler(EpochState):
     def other_arm_blocked(self, problem, world, obj, arm):
         """(arm, base, approach, world to check it in or None) of the other arm's best grasp of obj when
         every one of its grasps has objects in the way; else None. The refinement learns that grasp's
-        blockers with this arm's (see PR2Geometry.approach_blocked). An other arm that holds an object
+        blockers with this arm's (see ManipulationGeometry.approach_blocked). An other arm that holds an object
         is asked as it will be once it has put that down: out of the way, the arm tucked."""
-        other = next(a for a in ARMS if a != arm)
+        other = next((a for a in problem.geometry.robot.arms if a != arm), None)
+        if other is None:  # a one-armed robot: no other arm to ask about
+            return None
         free = _hand_emptied(problem.geometry, world, other) if world.held.get(other) else world
         ranked = self.ranked_grasps(problem, free, obj, other)
         if not ranked or not ranked[0][0][0]:
@@ -112,7 +117,7 @@ class ClutterSampler(EpochState):
     def grasp_candidates(self, problem, world, obj, arm, tries: int = 40):
         """(base, kind, T, waypoints, tool xy path) candidates for picking obj with arm where it stands;
         static checks only (IK, fixed obstacles), so they hold in every world with obj at this pose."""
-        from interlayer_pr2.generators import (_bearing, _problem_grasps, _waypoints, check_graspable, check_hand_fits,
+        from interlayer_manip.generators import (_bearing, _problem_grasps, _waypoints, check_graspable, check_hand_fits,
                                                grasp_poses)
 
         geometry = problem.geometry
@@ -130,8 +135,9 @@ class ClutterSampler(EpochState):
         n_bases = 3 * tries if target else tries
         found = []
         # the other arm tucked and nothing held: the candidates must not depend on the world they were asked in
-        w0 = replace(world, held={}, arms={a: tuple(geometry.robot.home(a)) for a in ARMS},
-                     grippers={a: "closed" for a in ARMS})
+        arms = geometry.robot.arms
+        w0 = replace(world, held={}, arms={a: tuple(geometry.robot.home(a)) for a in arms},
+                     grippers={a: "closed" for a in arms})
         for i in range(n_bases + 2 * tries):
             if i >= n_bases and found:
                 break  # past the first bases, only search on while nothing at all was found
@@ -228,7 +234,7 @@ class ClutterSampler(EpochState):
     def putdown_candidates(self, problem, obj, arm, world, rng, corridors, limit, tries: int = 80):
         """The ``limit`` best (ordering key, rank, base, x, y, object pose, tool pose, lowering, retreat)
         for putting down obj held in arm."""
-        from interlayer_pr2.generators import _putdown
+        from interlayer_manip.generators import _putdown
 
         geometry = problem.geometry
         G = world.held[arm][1]
@@ -272,7 +278,7 @@ def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None):
     if its ``heading`` is fixed), the object's pose ``pose_at(tool heading)`` (None: none there), IK, the
     lowering and the retreat. Returns (base, object pose, tool pose, lowering, retreat, movables on the
     lowering and retreat, movables on the straight joint-space line from the arm's posture) or None."""
-    from interlayer_pr2.generators import LIFT, PRE_GRASP, _line, trans
+    from interlayer_manip.generators import LIFT, PRE_GRASP, _line, trans
 
     base = base_near(geometry, x, y, rng, heading=heading)
     if base is None or not _base_free(geometry, world, base, tuck=arm):
@@ -315,8 +321,8 @@ def _with_hover(geometry, world, arm, T, wps, rng, obj):
     """Prefix the approach with a vertical descent from HOVER above the pre-grasp, so that the free
     transit ends above the clutter and only the descent and the approach run between objects
     (obstructions learned from a failure then name the objects really in the way)."""
-    from interlayer_pr2.generators import _line
-    from interlayer_pr2.world import PRE_GRASP, trans
+    from interlayer_manip.generators import _line
+    from interlayer_manip.state import PRE_GRASP, trans
 
     approach, lift = wps
     pre_T = T @ trans(-PRE_GRASP, 0, 0)

@@ -25,8 +25,8 @@ from dataclasses import replace
 import numpy as np
 
 from interlayer.refine import Candidate
-from interlayer_pr2.generators import _base_free, _bearing, _fmt, _line, _problem_grasps, _putdown, _waypoints, grasp_poses
-from interlayer_pr2.world import LIFT, PRE_GRASP, pose4, trans, wrap
+from interlayer_manip.generators import _base_free, _bearing, _fmt, _line, _problem_grasps, _putdown, _waypoints, grasp_poses
+from interlayer_manip.state import LIFT, PRE_GRASP, pose4, trans, wrap
 
 from .scene import HOME, TRAY, near_base, tray_spot
 from .stacking import stackable

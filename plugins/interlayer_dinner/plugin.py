@@ -1,12 +1,14 @@
 """Registers the Dinner-N domain (the paper's Sec. V-C; docs/dinner.md) and its pose generators."""
 from interlayer import hookimpl
 
-PARAMS = {"objects": 4, "handoff": False, "side_costs": False}
+PARAMS = {"objects": 4, "handoff": False, "side_costs": False, "robot": "pr2"}
 
 
 def make_problem(params, seed):
     from interlayer.domain import Problem
     from interlayer.errors import UserError
+
+    from interlayer_manip.params import robot_for
 
     from .domain import make_domain
     from .scene import ROOMS, make_layout
@@ -18,10 +20,16 @@ def make_problem(params, seed):
     for key in ("handoff", "side_costs"):
         if not isinstance(params[key], bool):
             raise UserError(f"problem.{key} must be true or false, got {params[key]!r}.")
+    desc = robot_for(params, "dinner", two_arms=True, mobile=True)  # the tray takes both hands, the rooms a base
+    if tuple(a.name for a in desc.arms) != ("left", "right"):
+        raise UserError(f"The dinner domain's tray and hand-over are written for two arms named left and right (the "
+                        f"robot's left is +y), and the {desc.name}'s are {', '.join(a.name for a in desc.arms)}; "
+                        f"choose another problem.robot (e.g. \"pr2\").")
     try:
         layout = make_layout(seed, n)
     except ValueError as exc:
         raise UserError(f"problem.objects={n}: {exc}; use fewer objects or another seed.") from None
+    layout.extra["robot"] = params.get("robot", "pr2")
     geometry = DinnerGeometry(layout)
     names = [o.name for o in layout.objects if o.name != "tray"]
     objects = {o: "obj" for o in names}
@@ -51,7 +59,7 @@ def interlayer_register_domains(registry):
     registry.add("dinner", make_problem,
                  "Dinner-N: a PR2 lays out a dinner table in another room (moving between rooms costs 100): a tray "
                  "carried with both hands, stacking checked by a stackability module (objects = N)",
-                 params=PARAMS, drawing="interlayer_pr2.draw")
+                 params=PARAMS, drawing="interlayer_manip.draw")
 
 
 @hookimpl

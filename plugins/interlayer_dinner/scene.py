@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from interlayer_pr2.scene import REST_GAP, Layout, ObjectSpec
+from interlayer_manip.scene import REST_GAP, Layout, ObjectSpec
 
 TOP = 0.72  # both tables' top surface
 SIDE = ((0.85, 0.1), (0.6, 1.8))  # side table centre (x, y), size (x, y)

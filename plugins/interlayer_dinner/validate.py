@@ -1,4 +1,4 @@
-"""The Dinner domain's additions to the PR2 validator (``interlayer_pr2.validate``, ``rules``): what a
+"""The Dinner domain's additions to the PR2 validator (``interlayer_manip.validate``, ``rules``): what a
 released object rests on (a table, the tray, or a cup or bowl it fits on, by the stackability module),
 the carried tray (everything resting on it is carried with it, nothing moves relative to it, only the
 base moves meanwhile), and the goal (every object at its place setting)."""
@@ -9,9 +9,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from interlayer_pr2.scene import REST_GAP
-from interlayer_pr2.validate import _inside, _pose_close, upright
-from interlayer_pr2.world import is_open
+from interlayer_manip.scene import REST_GAP
+from interlayer_manip.validate import _inside, _pose_close, upright
+from interlayer_manip.state import is_open
 
 from .scene import TOP, TRAY
 from .stacking import stackable

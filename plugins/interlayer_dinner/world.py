@@ -19,8 +19,9 @@ import numpy as np
 from interlayer.domain import GroundStep
 from interlayer.motion import MotionQuery
 from interlayer.refine import Failure, StepOutcome
-from interlayer_pr2.scene import REST_GAP, _radius
-from interlayer_pr2.world import PADDING, PR2Geometry, World, _failure, _holding, pose4, rz, trans
+from interlayer_manip.scene import REST_GAP, _radius
+from interlayer_manip.state import PADDING, World, _failure, _holding, pose4, rz, trans
+from interlayer_manip.world import ManipulationGeometry
 
 from .scene import TOP, TRAY
 
@@ -52,7 +53,7 @@ def base_matrix(base) -> np.ndarray:
     return pose4(base[0], base[1], 0.0, base[2])
 
 
-class DinnerGeometry(PR2Geometry):
+class DinnerGeometry(ManipulationGeometry):
     def __init__(self, layout, padding: float = PADDING):
         super().__init__(layout, padding=padding)
         self.kinds = layout.extra["kinds"]
@@ -339,7 +340,7 @@ class DinnerGeometry(PR2Geometry):
         return out
 
     def validate(self, plan, trajectory: dict) -> list[str]:
-        from interlayer_pr2.validate import validate_trajectory
+        from interlayer_manip.validate import validate_trajectory
 
         from . import validate
 
@@ -355,14 +356,14 @@ class DinnerGeometry(PR2Geometry):
                 f"stack; e.g. " + "; ".join(r for _, _, r in pairs[:3]))
 
     def draw_scene(self, scene, world=None):
-        from interlayer_pr2 import draw
+        from interlayer_manip import draw
 
         names = draw.draw_scene(self, scene, world)
         scene.view_direction = (0.2, -1.0, 1.3)  # from the side: both rooms, the doorway between them
         return names
 
     def animation_frames(self, scene, trajectory):
-        from interlayer_pr2 import draw
+        from interlayer_manip import draw
 
         return draw.animation_frames(self, scene, trajectory)
 

@@ -55,9 +55,9 @@ class Report:
 
 
 def top_grasps(P, yaws=(0.0, math.pi / 2, math.pi / 4, -math.pi / 4)):
-    """Tool poses of top grasps of a cylinder at P (as interlayer_pr2.generators.grasp_poses builds them)."""
-    from interlayer_pr2.generators import DOWN
-    from interlayer_pr2.world import rz, trans
+    """Tool poses of top grasps of a cylinder at P (as interlayer_manip.generators.grasp_poses builds them)."""
+    from interlayer_manip.generators import DOWN
+    from interlayer_manip.state import rz, trans
 
     depth = min(0.03, INNER[1] / 2)
     x, y, z = P[:3, 3]
@@ -144,8 +144,8 @@ def check_property(geometry, want_witness=True) -> Report:
 
 def _witness(geometry, first, free, P):
     """(pull, base) on the grid from which the right or left arm reaches a top grasp and its pre-grasp."""
-    from interlayer_pr2.generators import _base_free
-    from interlayer_pr2.world import ARMS, trans
+    from interlayer_manip.generators import _base_free
+    from interlayer_manip.state import trans
 
     rng = np.random.default_rng(0)
     world0 = geometry.initial_world()
@@ -165,7 +165,7 @@ def _witness(geometry, first, free, P):
                         continue
                     n += 1
                     wb = replace(w, base=base)
-                    for arm in ARMS:
+                    for arm in geometry.robot.arms:
                         for T in grasps:
                             wo = wb.with_gripper(arm, geometry.opening("inner", np.linalg.inv(T) @ Pd))
                             v = geometry.ik(wo, arm, T, rng, movables=True, ignore=("inner",), attempts=3)

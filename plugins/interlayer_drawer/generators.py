@@ -18,8 +18,8 @@ from dataclasses import replace
 import numpy as np
 
 from interlayer.refine import Candidate
-from interlayer_pr2 import generators as pr2
-from interlayer_pr2.world import rz, trans
+from interlayer_manip import generators as pr2
+from interlayer_manip.state import rz, trans
 
 from .check import exposed
 from .world import CABINET, DRAWER_LINK, HANDLE_GRIP, HANDLE_LINK
@@ -126,8 +126,6 @@ REACH_PULLS = (0.1, 0.2, 0.3, 0.4)
 def _reach_riders(geometry, world, base, path, rng) -> int:
     """At how many of REACH_PULLS (up to the pull the path reaches) some arm reaches a top grasp of
     every object riding in the drawer from ``base`` (IK, fixed obstacles)."""
-    from interlayer_pr2.world import ARMS
-
     body = geometry.cabinet
     riders = [o for o, (b, _) in world.riders.items() if b == CABINET and o in world.objects]
     if not riders:
@@ -143,7 +141,7 @@ def _reach_riders(geometry, world, base, path, rng) -> int:
             P0 = body.carry(world.objects[o], DRAWER_LINK, d0, body.zero())
             grasps = exposed(body, d, P0, pad=geometry.padding, yaws=(0.0, math.pi / 2))
             if not any(geometry.ik(w.with_gripper(a, geometry.opening(o, np.linalg.inv(T) @ w.objects[o])), a, T, rng,
-                                   ignore=(o,), attempts=2) is not None for T in grasps for a in ARMS):
+                                   ignore=(o,), attempts=2) is not None for T in grasps for a in geometry.robot.arms):
                 ok = False
                 break
         n += ok

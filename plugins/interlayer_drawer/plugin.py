@@ -1,13 +1,13 @@
 """Registers the Drawer (O) / (N) domain (the paper's Sec. V-A; docs/drawer.md) and its pose generators."""
 from interlayer import hookimpl
 
-PARAMS = {"variant": "O"}
+PARAMS = {"variant": "O", "robot": "pr2"}
 
 
 def make_problem(params, seed):
     from interlayer.domain import Problem
     from interlayer.errors import UserError
-    from interlayer_pr2.world import ARMS
+    from interlayer_manip.params import held_by_some_arm, robot_for
 
     from .domain import DOMAIN
     from .scene import make_layout
@@ -17,23 +17,26 @@ def make_problem(params, seed):
     if variant not in ("O", "N"):
         raise UserError(f"problem.variant must be \"O\" (the outer object may stay) or \"N\" (it must be moved), "
                         f"got {variant!r}.")
+    robot_for(params, "pr2-drawer", mobile=True)  # the drawer's contents are reached from several sides
     layout = make_layout(seed, variant)
+    layout.extra["robot"] = params.get("robot", "pr2")
     geometry = DrawerGeometry(layout)
     names = [o.name for o in layout.objects]
     objects = {o: "obj" for o in names}
-    objects.update({a: "arm" for a in ARMS})
+    arms = geometry.robot.arms
+    objects.update({a: "arm" for a in arms})
     objects.update({loc: "loc" for loc in layout.regions})
     objects["top_drawer"] = "drawer"
     objects["bp_init"] = "bpose"
-    for a in ARMS:
+    for a in arms:
         geometry.refs[f"bpfo_top_drawer_{a}"] = ("bpfo", ("top_drawer", a))
         for o in names:
             geometry.refs[f"bpfg_{o}_{a}"] = ("bpfg", (o, a))
             for loc in layout.regions:
                 geometry.refs[f"bpfpd_{o}_{a}_{loc}"] = ("bpfpd", (o, a, loc))
-    init = {("RobotAt", "bp_init"), ("In", "inner", "top_drawer")} | {("HandEmpty", a) for a in ARMS}
+    init = {("RobotAt", "bp_init"), ("In", "inner", "top_drawer")} | {("HandEmpty", a) for a in arms}
     init |= {("Loose", o) for o in names}
-    goal = "(or (Holding inner left) (Holding inner right))"
+    goal = held_by_some_arm("inner", arms)
     return Problem(DOMAIN, objects, frozenset(init), goal, geometry,
                    {"domain": "pr2-drawer", "params": dict(params), "seed": seed, "layout": layout.to_json()},
                    name=f"drawer-{variant}")
@@ -42,7 +45,7 @@ def make_problem(params, seed):
 @hookimpl
 def interlayer_register_domains(registry):
     registry.add("pr2-drawer", make_problem,
-                 "Drawer (O)/(N): a PR2 opens a drawer (a prismatic joint) and takes out the object in it; an object "
+                 "Drawer (O)/(N): a mobile robot (problem.robot, default the PR2) opens a drawer (a prismatic joint) and takes out the object in it; an object "
                  "on a stand in front stops the drawer (variant = \"N\": it must be moved first)", params=PARAMS)
 
 

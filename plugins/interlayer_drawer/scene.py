@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from interlayer_pr2.scene import REST_GAP, Layout, ObjectSpec
+from interlayer_manip.scene import REST_GAP, Layout, ObjectSpec
 
 FRONT = 1.0  # x of the cabinet's front face
 DEPTH, WIDTH, HEIGHT = 0.52, 0.60, 0.76  # cabinet outside
@@ -77,7 +77,7 @@ def inner_interior():
 def make_layout(seed: int, variant: str) -> Layout:
     """A seeded (O) or (N) scene; ``need`` / ``block`` (pull distances) go into ``layout.extra``."""
     from interlayer_pinocchio import ArticulatedBody
-    from interlayer_pr2.world import PADDING, pose4
+    from interlayer_manip.state import PADDING, pose4
 
     from .check import first_exposed
 

@@ -14,7 +14,8 @@ from dataclasses import replace
 
 
 from interlayer.refine import Failure, StepOutcome
-from interlayer_pr2.world import PADDING, PR2Geometry, _failure, _holding
+from interlayer_manip.state import PADDING, _failure, _holding
+from interlayer_manip.world import ManipulationGeometry
 
 from .scene import cabinet_placement, cabinet_urdf
 
@@ -22,7 +23,7 @@ CABINET, DRAWER_LINK, HANDLE_LINK = "cabinet", "drawer", "handle"
 HANDLE_GRIP = 0.03  # m between the finger pads around the 2 cm handle bar
 
 
-class DrawerGeometry(PR2Geometry):
+class DrawerGeometry(ManipulationGeometry):
     def __init__(self, layout, padding: float = PADDING):
         from interlayer_pinocchio import ArticulatedBody
 
@@ -94,7 +95,7 @@ class DrawerGeometry(PR2Geometry):
         return out
 
     def draw_scene(self, scene, world=None):
-        from interlayer_pr2 import draw
+        from interlayer_manip import draw
 
         names = draw.draw_scene(self, scene, world)
         scene.view_direction = (0.15, -1.0, 0.85)  # from the cabinet's side: the drawer slides across the view
@@ -102,7 +103,7 @@ class DrawerGeometry(PR2Geometry):
         return names
 
     def animation_frames(self, scene, trajectory):
-        from interlayer_pr2 import draw
+        from interlayer_manip import draw
 
         return draw.animation_frames(self, scene, trajectory)
 

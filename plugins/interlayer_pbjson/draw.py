@@ -8,8 +8,8 @@ import numpy as np
 
 
 def draw_scene(geometry, scene, world=None) -> dict:
-    from interlayer_pr2 import draw
-    from interlayer_pr2.world import pose4
+    from interlayer_manip import draw
+    from interlayer_manip.state import pose4
 
     names = draw.draw_scene(geometry, scene, world)
     extra = geometry.layout.extra

@@ -14,7 +14,7 @@ import numpy as np
 
 from interlayer.domain import Problem
 from interlayer.errors import UserError
-from interlayer_pr2.scene import Layout
+from interlayer_manip.scene import Layout
 
 from .domain import SLOTS, pbjson_domain
 from .scene import area, read_scene, top_name

@@ -19,8 +19,8 @@ from dataclasses import replace
 import numpy as np
 from interlayer.refine import Candidate
 from interlayer_clutter.samplers import ClutterSampler, fmt, in_corridors, putdown_motion
-from interlayer_pr2.scene import REST_GAP, _radius
-from interlayer_pr2.world import pose4, wrap
+from interlayer_manip.scene import REST_GAP, _radius
+from interlayer_manip.state import pose4, wrap
 
 from .scene import inside, polygon_of
 
@@ -36,7 +36,7 @@ class PBSampler(ClutterSampler):
         return self.place_on(problem, step, world, rng)
 
     def place_on(self, problem, step, world, rng, tries: int = 60):
-        from interlayer_pr2.generators import _putdown
+        from interlayer_manip.generators import _putdown
 
         obj, arm, surf = step.args[0], step.args[1], step.args[2]
         geometry = problem.geometry
@@ -87,7 +87,7 @@ class PBSampler(ClutterSampler):
                                   [(x, y, lambda h, x=x, y=y: pose_at(x, y, h), None) for _, x, y in spots], rng)
 
     def place_at_goal(self, problem, step, world, rng):
-        from interlayer_pr2.generators import _yaw
+        from interlayer_manip.generators import _yaw
 
         obj, arm = step.args[0], step.args[1]
         geometry = problem.geometry

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from interlayer.errors import UserError
-from interlayer_pr2.scene import ObjectSpec
+from interlayer_manip.scene import ObjectSpec
 
 GEOM_TYPES = ("box", "cylinder", "sphere", "trimesh", "mesh")
 GOAL_KEYS = ("goal_holding", "goal_regions", "goal_poses", "goal_stackings", "goal_cleaned", "goal_cooked", "goal_config")

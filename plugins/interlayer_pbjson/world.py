@@ -6,7 +6,7 @@ robot's start configuration from the file, ``go_home``, and the goal checks the 
 * ``place_at_goal`` refines like ``place`` (the put-down pose is the goal pose).
 * ``go_home``: tuck, drive back to the start base pose, then move each empty arm to its start joints;
   ``go_to``: tuck and drive to the file's base pose goal.
-* The validator (interlayer_pr2.validate, with this domain's rules) asks ``resting_on`` where a released
+* The validator (interlayer_manip.validate, with this domain's rules) asks ``resting_on`` where a released
   object rests and ``goal_violations`` whether the goals hold, replaying the releases for clean / cook.
 """
 from __future__ import annotations
@@ -17,9 +17,10 @@ from dataclasses import replace
 import numpy as np
 from interlayer.errors import UserError
 from interlayer.refine import StepOutcome
-from interlayer_pr2.scene import REST_GAP
-from interlayer_pr2.validate import upright
-from interlayer_pr2.world import ARMS, PADDING, PR2Geometry, _failure, _holding, pose4, wrap
+from interlayer_manip.scene import REST_GAP
+from interlayer_manip.validate import upright
+from interlayer_manip.state import PADDING, _failure, _holding, pose4, wrap
+from interlayer_manip.world import ManipulationGeometry
 
 from .scene import ON_TOL, inside, top_name
 
@@ -27,7 +28,7 @@ HOME_TOL = 1e-3  # m / rad: the robot is back at its start configuration
 GOAL_POS_TOL, GOAL_YAW_TOL = 0.01, math.radians(5)  # an object is at its goal pose
 
 
-class PBGeometry(PR2Geometry):
+class PBGeometry(ManipulationGeometry):
     def __init__(self, layout, padding: float = PADDING):
         super().__init__(layout, padding=padding)
         self.surfaces = layout.extra["surfaces"]
@@ -36,7 +37,7 @@ class PBGeometry(PR2Geometry):
 
     def _start_arms(self, conf) -> dict:
         out = {}
-        for arm in ARMS:
+        for arm in self.robot.arms:
             g = self.robot.group(f"{arm}_arm")
             given = conf.get(arm, {})
             if not any(j in given for j in g.dof_names):
@@ -155,7 +156,7 @@ class PBGeometry(PR2Geometry):
         if g["home"]:
             if self.base_space.distance(np.asarray(world.base, float), np.asarray(self.layout.base, float)) > HOME_TOL:
                 out.append("goal not satisfied: the base is not back at its start pose")
-            for arm in ARMS:
+            for arm in self.robot.arms:
                 if arm not in world.held and np.max(np.abs(np.subtract(world.arms[arm], self.start_arms[arm]))) > HOME_TOL:
                     out.append(f"goal not satisfied: the {arm} arm is not back at its start configuration")
         if g["base"] and self.base_space.distance(np.asarray(world.base, float), np.asarray(g["base"], float)) > HOME_TOL:
@@ -211,7 +212,7 @@ class PBGeometry(PR2Geometry):
     def _tuck(self, world, motion, segs, acc):
         """Tuck every empty arm that is not (the start configuration may hold them out)."""
         w = world
-        for arm in ARMS:
+        for arm in self.robot.arms:
             if arm in w.held or np.allclose(w.arms[arm], self.robot.home(arm), atol=1e-9):
                 continue
             res = self._plan(motion, self.arm_query(w, arm, w.arms[arm], self.robot.home(arm), "tuck", acc), "transit",
@@ -226,7 +227,7 @@ class PBGeometry(PR2Geometry):
         w, failed = self.drive(world, self.layout.base, "go_home drive", segs, motion, acc)
         if failed:
             return failed
-        for arm in ARMS:
+        for arm in self.robot.arms:
             if arm in w.held or np.allclose(w.arms[arm], self.start_arms[arm], atol=1e-9):
                 continue
             res = self._plan(motion, self.arm_query(w, arm, w.arms[arm], self.start_arms[arm], "go_home arm", acc),
@@ -240,7 +241,7 @@ class PBGeometry(PR2Geometry):
         """The PR2 validator with this domain's resting places and goals (its ``rules``)."""
         from types import SimpleNamespace
 
-        from interlayer_pr2.validate import validate_trajectory
+        from interlayer_manip.validate import validate_trajectory
 
         rules = SimpleNamespace(rests=lambda g, world, obj, P: g.resting_on(obj, P, world),
                                 goal=lambda g, world: g.goal_violations(world, trajectory))
@@ -263,6 +264,6 @@ class PBGeometry(PR2Geometry):
         return draw_scene(self, scene, world)
 
     def animation_frames(self, scene, trajectory):
-        from interlayer_pr2 import draw
+        from interlayer_manip import draw
 
         return draw.animation_frames(self, scene, trajectory)

@@ -1,13 +1,8 @@
 """Registers the PR2 pick-and-place domain and its pose generators."""
-import math
-
 from interlayer import hookimpl
+from interlayer_manip.params import TIMING, held_by_some_arm, robot_for, timing
 
-# Trajectory timing (TOPP-RA): arm joints at most their URDF velocity limits; PR2 domains may accept these keys too.
-TIMING = {"arm_acceleration": 1.5,  # rad/s^2, every arm joint
-          "base_velocity": [0.5, 0.5, 1.0],  # m/s, m/s, rad/s (x, y, theta; the URDF gives none)
-          "base_acceleration": [0.5, 0.5, 1.0]}  # m/s^2, m/s^2, rad/s^2
-PARAMS = {"goal": "hold", "grasps": ["side"], "target_radius": 0.035, "clutter": 0, **TIMING}
+PARAMS = {"goal": "hold", "grasps": ["side"], "target_radius": 0.035, "clutter": 0, "robot": "pr2", **TIMING}
 
 
 def make_problem(params, seed):
@@ -16,29 +11,16 @@ def make_problem(params, seed):
     return problem
 
 
-def timing(params):
-    """The timing keys, checked: positive numbers (three for the base: x, y, theta)."""
-    from interlayer.errors import UserError
-
-    out = {}
-    for key, n in (("arm_acceleration", 1), ("base_velocity", 3), ("base_acceleration", 3)):
-        value = params.get(key, TIMING[key])
-        items = value if n > 1 and isinstance(value, list) else [value]
-        if len(items) != n or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < math.inf
-                                  for v in items):
-            what = "a positive number" if n == 1 else "a list of three positive numbers (x, y, theta)"
-            raise UserError(f"problem.{key} must be {what}, got {value!r}.")
-        out[key] = value
-    return out
-
-
 def _make_problem(params, seed):
     from interlayer.domain import Problem
     from interlayer.errors import UserError
+    from interlayer_manip.params import fixed_placement
+    from interlayer_manip.placement import hand_width
+    from interlayer_manip.state import OPEN_CLEARANCE, PADDING
+    from interlayer_manip.world import ManipulationGeometry, load_robot
 
     from .domain import DOMAIN
     from .scene import make_layout
-    from .world import ARMS, PR2Geometry
 
     goal = params["goal"]
     if goal not in ("hold", "place", "tidy"):
@@ -52,29 +34,43 @@ def _make_problem(params, seed):
     n = params["clutter"]
     if not isinstance(n, int) or isinstance(n, bool) or not 0 <= n <= 12:
         raise UserError(f"problem.clutter must be an integer from 0 to 12 (extra cylinders on the table), got {n!r}.")
+    desc = robot_for(params, "pr2")
+    where = {"extra": {"robot": params.get("robot", "pr2")}}
+    if not desc.mobile:  # the robot stands at the table's near edge (x = 0.6), mounted at its top's height
+        kind = "top" if "top" in grasps else "side"
+        base_x, reach = fixed_placement(desc, 0.6, 0.88, 0.0, 0.14 - 0.03 if kind == "top" else 0.07, kind)  # the target
+        where = {"top": 0.0, "base": (base_x, 0.0, 0.0), "extra": {**where["extra"], "table_top": 0.0, "reach": reach}}
+    robot = load_robot(desc, where["extra"])
+    # the blocker must fit the gripper (opened OPEN_CLEARANCE wider), or nothing clears the cubby's mouth
+    blocker = min(0.04, (robot.max_gripper_opening - OPEN_CLEARANCE) / 2)
+    # ... and the cubby (inside: 0.12 m each side of its axis) the open hand, kept PADDING from its panels
+    # (+ 5 mm: the objects' jitter)
+    wider = max(0.0, max(hand_width(robot, a) for a in robot.arms) / 2 + PADDING + 0.005 - 0.12)
     try:
-        layout = make_layout(seed, goal, grasps, float(r), n)
+        layout = make_layout(seed, goal, grasps, float(r), n, blocker_radius=blocker, wider=wider, **where)
     except ValueError as exc:
         raise UserError(f"problem.clutter={n}: {exc}; use fewer.") from None
-    geometry = PR2Geometry(layout)
+    geometry = ManipulationGeometry(layout, robot=robot)
+    arms = geometry.robot.arms
     objects = {o.name: "obj" for o in layout.objects}
-    objects.update({a: "arm" for a in ARMS})
+    objects.update({a: "arm" for a in arms})
     objects.update({loc: "loc" for loc in layout.regions})
     objects["bp_init"] = "bpose"
     # reference name -> (skolem, args), so that move_base's generator knows what a base pose is for
     names = [o.name for o in layout.objects]
     for o in names:
-        for a in ARMS:
+        for a in arms:
             geometry.refs[f"bpfg_{o}_{a}"] = ("bpfg", (o, a))
             for loc in layout.regions:
                 geometry.refs[f"bpfpd_{o}_{a}_{loc}"] = ("bpfpd", (o, a, loc))
-    init = {("RobotAt", "bp_init")} | {("HandEmpty", a) for a in ARMS}
+    init = {("RobotAt", "bp_init")} | {("HandEmpty", a) for a in arms}
     init |= {("Loose", o) for o in names} | {("At", o, "table") for o in names}
     t = layout.target
-    goal_formula = {"hold": f"(or (Holding {t} left) (Holding {t} right))",
+    empty = " ".join(f"(HandEmpty {a})" for a in arms)
+    goal_formula = {"hold": held_by_some_arm(t, arms),
                     "place": f"(At {t} goal_spot)",
                     # ... and nothing left in the hands: the blocker must be put down somewhere
-                    "tidy": f"(and (At {t} goal_spot) (HandEmpty left) (HandEmpty right))"}[goal]
+                    "tidy": f"(and (At {t} goal_spot) {empty})"}[goal]
     return Problem(DOMAIN, objects, frozenset(init), goal_formula, geometry,
                    {"domain": "pr2", "params": dict(params), "seed": seed, "layout": layout.to_json()},
                    name=f"pr2-{goal}" + (f"-clutter{n}" if n else ""))
@@ -83,13 +79,14 @@ def _make_problem(params, seed):
 @hookimpl
 def interlayer_register_domains(registry):
     registry.add("pr2", make_problem,
-                 "a PR2 picks a cylinder from a cubby whose mouth another cylinder blocks (Fig. 3 actions, both arms)",
-                 params=PARAMS, drawing="interlayer_pr2.draw")
+                 "a robot (problem.robot, default the PR2) picks a cylinder from a cubby whose mouth another cylinder "
+                 "blocks (Fig. 3 actions, every arm)",
+                 params=PARAMS, drawing="interlayer_manip.draw")
 
 
 @hookimpl
 def interlayer_register_pose_generators(registry):
-    generators = "interlayer_pr2.generators:"  # imported when selected
+    generators = "interlayer_manip.generators:"  # imported when selected
 
     registry.add("pr2:move_base", generators + "move_base", "base poses in an annulus around the object or put-down spot")
     registry.add("pr2:pick", generators + "pick", "side (and top) grasps with pre-grasp and raise waypoints, by IK")

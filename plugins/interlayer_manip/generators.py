@@ -20,7 +20,7 @@ import numpy as np
 from interlayer.refine import Candidate, Infeasible, stable_seed
 
 from .scene import REST_GAP, table_top
-from .world import LIFT, OPEN_CLEARANCE, PRE_GRASP, pose4, rz, trans, wrap
+from .state import LIFT, OPEN_CLEARANCE, PRE_GRASP, pose4, rz, trans, wrap
 
 LINE_STEP = 0.05  # m between IK waypoints of straight-line approaches
 GRASP_CLEARANCE = 0.001  # the gripper must open at least this much wider than the object
@@ -80,7 +80,7 @@ def check_graspable(problem, name):
                 for h in np.linspace(-math.pi, math.pi, 8, endpoint=False))
     if not found and name in problem.goal:
         width = 2 * o.size[0] if o.shape == "cylinder" else min(o.size[0], o.size[1])
-        raise Infeasible(f"{name} is {width:.3f} m wide but the PR2 gripper opens only "
+        raise Infeasible(f"{name} is {width:.3f} m wide but the {geometry.robot.description.name} gripper opens only "
                          f"{geometry.robot.max_gripper_opening:.3f} m: no grasp exists")
     return found
 
@@ -109,22 +109,25 @@ def check_hand_fits(problem, world, obj):
     ignore = tuple(geometry.fixed) + tuple(world.objects)
     blockers = set()
     for T in poses.values():
-        # a base 0.6 m behind the grasp, facing along the approach (a top grasp: from where the robot is)
+        # a base 0.6 m behind the grasp, facing along the approach (a top grasp or a fixed base: where the robot is)
         yaw = _yaw(T) if abs(T[2, 0]) < 0.7 else _bearing(world.base, P[0, 3], P[1, 3])
-        w = replace(world, held={}, base=(float(T[0, 3] - 0.6 * math.cos(yaw)), float(T[1, 3] - 0.6 * math.sin(yaw)), yaw))
+        base = (float(T[0, 3] - 0.6 * math.cos(yaw)), float(T[1, 3] - 0.6 * math.sin(yaw)), yaw)
+        w = replace(world, held={}, base=base if geometry.robot.mobile else world.base)
         opened = geometry.opening(obj, np.linalg.inv(T) @ P)
-        found = ((a, geometry.ik(w, a, T, rng, ignore=ignore, gripper=opened)) for a in ("left", "right"))
+        found = ((a, geometry.ik(w, a, T, rng, ignore=ignore, gripper=opened)) for a in geometry.robot.arms)
         arm, v = next(((a, v) for a, v in found if v is not None), (None, None))
         if arm is None:
             return  # not reached even with nothing in the way: no proof
         q = geometry.sync(w.with_arm(arm, v).with_gripper(arm, opened))
-        hand = f"{arm[0]}_gripper_"
-        hits = {b for a, b in geometry.cw.collision_pairs(q, movables=False) if a.startswith(hand) and b in geometry.fixed}
+        robot = geometry.robot
+        geoms = set(robot.gripper_links(arm))  # the hand's geometries -> their links (collision pairs name links)
+        hand = {robot.model.frames[g.parentFrame].name for g in robot.collision_model.geometryObjects if g.name in geoms}
+        hits = {b for a, b in geometry.cw.collision_pairs(q, movables=False) if a in hand and b in geometry.fixed}
         if not hits:
             return
         blockers |= hits
     padded = f"; planning keeps {geometry.padding * 100:.1f} cm from fixed obstacles" if geometry.padding else ""
-    raise Infeasible(f"every grasp of {obj} that fits the gripper puts the PR2's fingers into {', '.join(sorted(blockers))} "
+    raise Infeasible(f"every grasp of {obj} that fits the gripper puts the {geometry.robot.description.name}'s fingers into {', '.join(sorted(blockers))} "
                      f"where {obj} stands (the gripper opened only {OPEN_CLEARANCE * 100:.0f} cm wider than {obj}{padded}), "
                      f"and the goal needs {obj} moved")
 
@@ -251,6 +254,8 @@ def _free_bases(geometry, world, x, y, rng, tries):
     most 20 samples each): an object in a cubby leaves a narrow free sector, and IK, not this check,
     is what costs."""
     yield tuple(world.base)
+    if not geometry.robot.mobile:  # a fixed base: where it stands is the only base pose
+        return
     free = 0
     for _ in range(20 * tries):
         base = _annulus(rng, x, y)
@@ -308,7 +313,7 @@ def _spots(problem, world, obj, loc, rng, tries):
     others = {k: v for k, v in geometry.layout.regions.items() if k not in (loc, "table")}
     for _ in range(tries):
         x, y = rng.uniform(xmin + m, xmax - m), rng.uniform(ymin + m, ymax - m)
-        if math.hypot(x - world.base[0], y - world.base[1]) > 1.2:
+        if math.hypot(x - world.base[0], y - world.base[1]) > geometry.layout.extra.get("reach", 1.2):
             continue
         if loc == "table" and any(a - m <= x <= b + m and c - m <= y <= d + m for a, b, c, d in others.values()):
             continue
@@ -332,7 +337,7 @@ def _bases_for_putdown(problem, world, obj, arm, loc, ref, rng, limit, tries):
     n = 0
     for x, y, z in _spots(problem, world, obj, loc, rng, tries):
         for _ in range(4):
-            base = _annulus(rng, x, y)
+            base = _annulus(rng, x, y) if geometry.robot.mobile else tuple(world.base)
             if not _base_free(geometry, world, base, tuck=arm):
                 continue
             P, T = _putdown(G, x, y, z, _bearing(base, x, y) + rng.uniform(-0.3, 0.3))

@@ -1,4 +1,4 @@
-"""Independent re-check of a PR2 trajectory.json: continuity (no teleports), joint limits, collisions
+"""Independent re-check of a manipulation trajectory.json: continuity (no teleports), joint limits, collisions
 with everything (held objects included) at a resolution 5x finer than planning, grasps consistent with
 what is held, released objects resting where the gripper put them, and the goal at the end."""
 from __future__ import annotations
@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 
 from .scene import REST_GAP, table_top
-from .world import RES_ARM, RES_BASE, is_open
+from .state import RES_ARM, RES_BASE, is_open
 
 FINE_ARM, FINE_BASE = RES_ARM / 5, RES_BASE / 5
 POS_TOL, ROT_TOL = 2e-3, math.radians(2)
@@ -175,8 +175,8 @@ def _check_motion(geometry, world, seg, at):
     group_name = seg.get("group")
     if group_name == "base":
         space, names, fine = geometry.base_space, ["x", "y", "theta"], FINE_BASE
-    elif group_name in ("left_arm", "right_arm"):
-        arm = group_name.split("_")[0]
+    elif group_name in geometry.group_arm:
+        arm = geometry.group_arm[group_name]
         space, names, fine = geometry.arm_space[arm], list(robot.group(group_name).dof_names), FINE_ARM
     else:
         return world, f"{at}: unknown joint group {group_name!r}"
@@ -279,9 +279,9 @@ def _check_pull(geometry, world, seg, at):
     group_name = seg.get("group", "")
     if b is None or body not in world.joints:
         return world, f"{at}: unknown articulated body {body!r}"
-    if group_name not in ("left_arm", "right_arm"):
+    if group_name not in geometry.group_arm:
         return world, f"{at}: a pull must move an arm, not {group_name!r}"
-    arm = group_name.split("_")[0]
+    arm = geometry.group_arm[group_name]
     names = list(robot.group(group_name).dof_names) + [f"{body}/{j}" for j in b.joint_names]
     if list(seg.get("joint_names", [])) != names:
         return world, f"{at}: joint names {seg.get('joint_names')} are not {names}"

@@ -1,12 +1,12 @@
 """How the PR2 domain draws itself in a 3D view (used by the meshcat visualizer).
 
 Two functions with the geometry as first argument (the visualizer finds them as
-``interlayer_pr2.draw``)::
+``interlayer_manip.draw``)::
 
     draw_scene(geometry, scene, world=None) -> {problem object: scene name}
     animation_frames(geometry, scene, trajectory) -> [{scene name: 4x4 pose, "@step": i}, ...]
 
-``world`` is a snapshot as written by ``PR2Geometry.snapshot`` (``World.to_json()``: base, arms,
+``world`` is a snapshot as written by ``ManipulationGeometry.snapshot`` (``World.to_json()``: base, arms,
 grippers, objects as 4x4 poses, held objects with their grasp) or ``None`` for the initial world;
 ``trajectory`` is trajectory.json (per segment a joint trajectory of the base (x, y, theta) or of one
 arm, gripper open / close, grasp and release events between). Everything is read defensively: only
@@ -141,7 +141,7 @@ class _State:
                 q = r.set(q, f"{arm}_arm", vals)
             except Exception:
                 pass
-        for arm in ("left", "right"):
+        for arm in r.arms:
             try:
                 g = self.grippers.get(arm)
                 if arm in self.opening:
@@ -426,7 +426,7 @@ def animation_frames(geometry, scene, trajectory) -> list:
                             state.base = tuple(float(x) for x in v)
                             frames.append(frame(i))
                     else:
-                        arm = group.split("_")[0]
+                        arm = group.removesuffix("_arm")  # groups are "{arm}_arm"
                         names = list(seg.get("joint_names") or [])
                         try:
                             dof = list(robot.group(group).dof_names)

@@ -1,5 +1,5 @@
 """Scene sanity of a PR2 layout at its initial poses: objects that interpenetrate (an error: no plan
-can start there), float above every support or lie below the ground. ``PR2Geometry.scene_issues``
+can start there), float above every support or lie below the ground. ``ManipulationGeometry.scene_issues``
 serves it to ``interlayer check`` and ``plan``; every domain built on a Layout gets it."""
 from __future__ import annotations
 

@@ -1,0 +1,94 @@
+"""The manipulation layer on robots other than the PR2 (issue 21): problem.robot selects the robot in the
+manipulation domains; a fixed-base, one-armed robot (the Panda: approach along its hand's z axis, two
+prismatic fingers) picks and places, checked by the independent validator; domains that need two arms
+or a mobile base refuse it in one sentence."""
+import json
+from pathlib import Path
+
+import pytest
+
+from interlayer import api
+from interlayer.errors import UserError
+
+ROOT = Path(__file__).resolve().parents[1]
+CUBBY = ROOT / "examples" / "pr2_pick.toml"
+CLUTTER = ROOT / "examples" / "clutter.toml"
+
+
+def _solved_and_valid(result, out):
+    assert result.status == "solved", result.reason
+    api.write_outputs(result, out)
+    assert api.validate(out) == []
+    return json.loads((out / "trajectory.json").read_text())
+
+
+def test_a_fixed_base_one_armed_robot_picks_and_places_in_the_cubby(tmp_path):
+    result = api.solve(str(CUBBY), ["problem.robot=panda", "problem.goal=place", 'problem.grasps=["top"]',
+                                    "planner.seed=0", "planner.time_limit=90"])
+    traj = _solved_and_valid(result, tmp_path)
+    assert [s.action for s in result.plan if s.action != "move_base"] == ["pick", "place"]
+    assert {s.args[1] for s in result.plan if s.action != "move_base"} == {"arm"}  # the Panda's one arm, by its name
+    groups = {seg.get("group") for step in traj["steps"] for seg in step["segments"]}
+    assert groups - {None} == {"arm_arm"}  # a fixed base never moves
+    g = result.problem.geometry
+    assert not g.robot.mobile and g.robot.arms == ("arm",)
+    assert result.problem.goal == "(At target goal_spot)"
+
+
+def test_clutter15_on_a_fixed_base_robot_solves_and_validates(tmp_path):
+    result = api.solve(str(CLUTTER), ["problem.robot=panda", "problem.objects=15", "planner.seed=0",
+                                      "planner.time_limit=90"])
+    traj = _solved_and_valid(result, tmp_path)
+    layout = result.problem.geometry.layout
+    base, far = layout.base, layout.extra["reach"]
+    # the robot stands at the table's edge and every cylinder stands within its reach
+    assert base[0] < layout.regions["table"][0]
+    assert all(((o.pose[0] - base[0]) ** 2 + (o.pose[1] - base[1]) ** 2) ** 0.5 <= far + 1e-9 for o in layout.objects)
+    assert all(seg.get("group") != "base" for step in traj["steps"] for seg in step["segments"])
+
+
+def test_a_one_armed_robot_has_its_arm_as_the_other_arm_in_clutter():
+    from interlayer.plugins import PluginHost
+
+    problem = api.build_problem(PluginHost(), api.resolve_config(str(CLUTTER), ["problem.robot=panda",
+                                                                                "problem.objects=15"]))
+    assert ("Other", "arm", "arm") in problem.init and ("HandEmpty", "arm") in problem.init
+    assert problem.goal == f"(Holding {problem.geometry.layout.target} arm)"
+
+
+@pytest.mark.parametrize("domain, overrides, needs", [
+    ("dinner", [], "two arms"),
+    ("drawer", [], "a mobile base"),
+])
+def test_a_domain_refuses_a_robot_that_lacks_what_it_needs_in_one_sentence(domain, overrides, needs):
+    with pytest.raises(UserError) as error:
+        api.prepare(str(ROOT / "examples" / f"{domain}.toml"), ["problem.robot=panda", *overrides])
+    message = str(error.value)
+    assert needs in message and "panda" in message and "problem.robot" in message
+    assert "\n" not in message and message.endswith(".")
+
+
+def test_an_unknown_robot_is_a_user_error_naming_the_key():
+    with pytest.raises(UserError, match=r"problem\.robot: unknown robot 'pandaa'.*panda"):
+        api.prepare(str(CUBBY), ["problem.robot=pandaa"])
+
+
+def test_the_pr2_is_the_default_robot_and_keeps_both_arms():
+    from interlayer.plugins import PluginHost
+
+    problem = api.build_problem(PluginHost(), api.resolve_config(str(CUBBY), []))
+    assert problem.geometry.robot.arms == ("left", "right") and problem.geometry.robot.mobile
+    assert problem.goal == "(or (Holding target left) (Holding target right))"
+
+
+def test_a_fixed_base_robots_base_pose_generators_offer_only_where_it_stands():
+    import numpy as np
+
+    from interlayer.domain import GroundStep
+    from interlayer_manip.generators import move_base
+
+    run = api.prepare(str(CUBBY), ["problem.robot=panda", "problem.goal=place", 'problem.grasps=["top"]'])
+    problem = run.problem
+    world = problem.geometry.initial_world()
+    found = list(move_base(problem, GroundStep("move_base", ("bpfg_can_arm",)), world, np.random.default_rng(0), limit=20))
+    assert found and {c.waypoints[0] for c in found} == {tuple(world.base)}
