@@ -51,7 +51,7 @@ def test_robot_check_reports_the_panda(entry_point, capsys):
     assert main(["robot", "check", str(PANDA)]) == 0
     text = capsys.readouterr().out
     assert "tool_frame: panda_hand_tcp" in text and "approach: +z" in text and "base: fixed" in text
-    assert "joints: panda_joint1, panda_joint2" in text
+    assert "joints: panda_joint1, panda_joint2" in text and "\nheld: none\n" in text  # the Panda holds no joint
 
 
 def test_robot_check_names_the_field_and_exits_2(entry_point, tmp_path):

@@ -12,9 +12,9 @@ def test_panda_reaches_the_grasp_codes_poses_fingers_first():
     from types import SimpleNamespace
 
     from interlayer_pinocchio import CollisionWorld, Robot, solve_ik
-    from interlayer_pr2.generators import grasp_poses
-    from interlayer_pr2.scene import ObjectSpec
-    from interlayer_pr2.world import pose4
+    from interlayer_manip.generators import grasp_poses
+    from interlayer_manip.scene import ObjectSpec
+    from interlayer_manip.state import pose4
 
     robot = Robot.load("panda")
     can = ObjectSpec("can", "cylinder", (0.03, 0.12), (0.5, 0.1, 0.12, 0.0))  # within its reach, sideways too

@@ -6,7 +6,6 @@ from __future__ import annotations
 def robot_report(name_or_path) -> dict:
     """A JSON-ready summary of the robot ``name_or_path`` (a shipped name or a description file); a bad
     description raises ``UserError`` naming the field."""
-    from .ik import arm_ik
     from .robot import Robot
 
     robot = Robot.load(name_or_path)
@@ -19,7 +18,7 @@ def robot_report(name_or_path) -> dict:
         arms.append({
             "name": a.name, "joints": list(a.joints), "tool_frame": a.tool_frame,
             "approach": axis[a.approach], "closing": axis[a.closing].lstrip("+"),
-            "reach": round(float(arm_ik(robot, a.name).reach), 3),
+            "reach": round(robot.reach(a.name)[1], 3),
             "gripper": {"joints": [j for j, _ in a.gripper.joints], "closed": round(closed, 4) + 0.0,
                         "open": round(widest, 4) + 0.0, "measured": a.gripper.fingers is not None},
         })

@@ -143,8 +143,8 @@ def _parse(data: dict, path: Path) -> RobotDescription:
         r.fail("arms", f"two arms are named {next(n for n in names if names.count(n) > 1)!r}")
     limits = r.table(data, "limits")
     r.keys(limits, "limits", {"velocity", "acceleration"})
-    vel, acc = (tuple((j, r.positive(r.table(limits, f"limits.{k}"), f"limits.{k}.{j}", key=j))
-                      for j in r.table(limits, f"limits.{k}")) for k in ("velocity", "acceleration"))
+    vel, acc = (tuple((j, r.positive(table, f"limits.{k}.{j}", key=j)) for j in table)
+                for k in ("velocity", "acceleration") for table in [r.table(limits, k, field=f"limits.{k}")])
     sc = r.table(data, "self_collision")
     r.keys(sc, "self_collision", {"skip"})
     skip = None

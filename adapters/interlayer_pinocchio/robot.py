@@ -82,7 +82,7 @@ class Robot:
             lo, hi = self.model.lowerPositionLimit[qi], self.model.upperPositionLimit[qi]
             if not lo <= value <= hi:
                 field = "torso_height" if jname == desc.torso else f"hold.{jname}"
-                raise UserError(f"{desc.where(field)}: {value} is outside {jname}'s range [{lo}, {hi}]")
+                raise UserError(f"{desc.where(field)}: {value} is outside {jname}'s range [{lo:.4g}, {hi:.4g}]")
             self._held.append((qi, float(value)))
         self.torso_height = None if desc.torso is None else float(held[desc.torso])
         self.base_limits = (tuple(map(float, base_limits[0])), tuple(map(float, base_limits[1])))
@@ -155,6 +155,10 @@ class Robot:
         return JointGroup(f"{arm.name}_gripper", (name,), _frozen([lo]), _frozen([hi]), (False,),
                           tuple(ids), tuple(linear), ())
 
+    def arm_of(self, group: str) -> str | None:
+        """The arm a group belongs to (``{arm}_arm``, ``{arm}_gripper``; arm names may contain ``_``), or None."""
+        return next((a for a in self.arms if group in (f"{a}_arm", f"{a}_gripper")), None)
+
     def group(self, name: str) -> JointGroup:
         try:
             return self.groups[name]
@@ -224,6 +228,16 @@ class Robot:
         return out
 
     # -- kinematics ---------------------------------------------------------------------------
+    def reach(self, arm: str) -> tuple[np.ndarray, float]:
+        """(origin of the arm's first joint in the base frame, at the held joint values; an upper bound on
+        the distance from it to the tool frame: the chain's link offsets added up)."""
+        from .ik import arm_ik
+
+        q = self.default_q()
+        pin.forwardKinematics(self.model, self.data, q)
+        first = self.groups[f"{arm}_arm"].joint_ids[0]
+        return self.data.oMi[first].translation.copy(), float(arm_ik(self, arm).reach)
+
     def tool_frame(self, arm: str) -> str:
         """Name of the description's tool frame (between the finger pads)."""
         return self._arm[arm].tool_frame

@@ -440,7 +440,9 @@ def _outline(value, indent: str = "") -> list[str]:
     """A JSON-ready report as indented ``key: value`` lines (lists of plain values on one line)."""
     lines = []
     for key, item in value.items():
-        if isinstance(item, dict):
+        if isinstance(item, (dict, list)) and not item:
+            lines.append(f"{indent}{key}: none")
+        elif isinstance(item, dict):
             lines += [f"{indent}{key}:"] + _outline(item, indent + "  ")
         elif isinstance(item, list) and any(isinstance(x, dict) for x in item):
             for x in item:

@@ -426,7 +426,7 @@ def animation_frames(geometry, scene, trajectory) -> list:
                             state.base = tuple(float(x) for x in v)
                             frames.append(frame(i))
                     else:
-                        arm = group.removesuffix("_arm")  # groups are "{arm}_arm"
+                        arm = robot.arm_of(group)
                         names = list(seg.get("joint_names") or [])
                         try:
                             dof = list(robot.group(group).dof_names)

@@ -111,7 +111,7 @@ class MotionQueries:
         is collision-free."""
         q = self.sync(world)
         check = self.cw.checker_for(group, q)
-        space = self.base_space if group == "base" else self.arm_space[self.group_arm[group]]
+        space = self.base_space if group == "base" else self.arm_space[self.robot.arm_of(group)]
         t0 = time.perf_counter()
         step = space.resolution / 5
         ok = points_valid(space.densify(list(path), step), check, self._certificate(q, group, step * (FINE_BLOCK // 2)))

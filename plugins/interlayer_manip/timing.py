@@ -28,7 +28,7 @@ class Output:
         from interlayer_optim.timing import time_parameterize
 
         group = segment["group"]
-        space = self.base_space if group == "base" else self.arm_space[self.group_arm[group]]
+        space = self.base_space if group == "base" else self.arm_space[self.robot.arm_of(group)]
         path = [np.asarray(p["positions"], float) for p in segment["points"]]
         if group == "base":  # unwrap the heading, so that the timing follows the short way round
             raw, path = path, path[:1]

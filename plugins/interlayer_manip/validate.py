@@ -175,8 +175,8 @@ def _check_motion(geometry, world, seg, at):
     group_name = seg.get("group")
     if group_name == "base":
         space, names, fine = geometry.base_space, ["x", "y", "theta"], FINE_BASE
-    elif group_name in geometry.group_arm:
-        arm = geometry.group_arm[group_name]
+    elif group_name == f"{robot.arm_of(group_name)}_arm":
+        arm = robot.arm_of(group_name)
         space, names, fine = geometry.arm_space[arm], list(robot.group(group_name).dof_names), FINE_ARM
     else:
         return world, f"{at}: unknown joint group {group_name!r}"
@@ -279,9 +279,9 @@ def _check_pull(geometry, world, seg, at):
     group_name = seg.get("group", "")
     if b is None or body not in world.joints:
         return world, f"{at}: unknown articulated body {body!r}"
-    if group_name not in geometry.group_arm:
+    arm = robot.arm_of(group_name)
+    if group_name != f"{arm}_arm":
         return world, f"{at}: a pull must move an arm, not {group_name!r}"
-    arm = geometry.group_arm[group_name]
     names = list(robot.group(group_name).dof_names) + [f"{body}/{j}" for j in b.joint_names]
     if list(seg.get("joint_names", [])) != names:
         return world, f"{at}: joint names {seg.get('joint_names')} are not {names}"

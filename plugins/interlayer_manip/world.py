@@ -70,7 +70,6 @@ class ManipulationGeometry(MotionQueries, Reach, Refiners, Articulated, Output):
         # interpolates linearly), the core's densify (validator, straight lines) and a controller
         # reading trajectory.json (linear in joint values).
         self.arm_space = {}
-        self.group_arm = {f"{a}_arm": a for a in self.robot.arms}  # group name -> arm (names are data: no parsing)
         for arm in self.robot.arms:
             g = self.robot.group(f"{arm}_arm")
             self.arm_space[arm] = ConfigSpace("vector", tuple(g.lower), tuple(g.upper), (False,) * g.dof, RES_ARM)

@@ -172,3 +172,40 @@ def test_the_robot_layers_public_names_are_documented():
         assert f"`{name}" in doc, f"{name} is not in docs/plugins.md's robot layer table"
     assert callable(interlayer_optim.timing.time_parameterize)
     assert "`interlayer_optim.timing.time_parameterize(" in doc and "`interlayer_meshcat.add_pinocchio_robot(" in doc
+
+
+def test_held_joint_overrides_are_checked_against_the_urdf():
+    from interlayer.errors import UserError
+
+    with pytest.raises(UserError, match=r"^pr2.toml: torso_height: 0.5 is outside torso_lift_joint's range \[0, 0.31\]$"):
+        Robot.load("pr2", torso_height=0.5)
+    with pytest.raises(UserError, match=r"^panda.toml: robot.torso: the panda has no torso"):
+        Robot.load("panda", torso_height=0.2)
+    with pytest.raises(UserError, match=r"^panda.toml: hold.panda_joint4: 0.5 is outside panda_joint4's range \[-3.072, -0.0698\]$"):
+        Robot.load("panda", hold={"panda_joint4": 0.5})
+
+
+def test_reach_and_group_arms(tmp_path):
+    robot = Robot.load("panda")
+    shoulder, radius = robot.reach("arm")
+    np.testing.assert_allclose(shoulder, [0.0, 0.0, 0.333], atol=1e-9)  # panda_joint1 above the base
+    rng = np.random.default_rng(0)
+    for _ in range(50):  # an upper bound: no configuration puts the tool farther
+        assert np.linalg.norm(robot.tool_pose(robot.random_q(rng, groups=("arm_arm",)), "arm")[:3, 3] - shoulder) <= radius
+    assert robot.arm_of("arm_arm") == robot.arm_of("arm_gripper") == "arm" and robot.arm_of("base") is None
+    named = Robot.load(_variant(tmp_path, 'name = "arm"', 'name = "the_arm"'))  # names are data: "_" included
+    assert named.arms == ("the_arm",) and named.arm_of("the_arm_gripper") == "the_arm"
+    assert named.group("the_arm_arm").dof == 7
+
+
+def test_gripper_opening_given_and_limits_overridden(tmp_path):
+    path = _variant(tmp_path, 'fingers = ["panda_leftfinger", "panda_rightfinger"]', "opening = [0.01, 0.09]")
+    path.write_text(path.read_text() + "\n[limits]\nvelocity = { panda_joint1 = 1.5 }\n"
+                    "acceleration = { panda_joint2 = 7.0 }\n")
+    robot = Robot.load(path)
+    assert robot.gripper_range("arm") == (0.01, 0.09)  # the pad gap at the DOF's limits, linear between
+    q = robot.set_gripper_opening(robot.default_q(), "arm", 0.05)
+    assert robot.get(q, "arm_gripper")[0] == pytest.approx(0.02) and robot.gripper_opening(q, "arm") == pytest.approx(0.05)
+    vel, acc = robot.velocity_limits("arm_arm"), robot.acceleration_limits("arm_arm")
+    assert vel[0] == 1.5 and vel[1] == pytest.approx(2.175)  # given, else the URDF's
+    assert acc[0] == 3.0 and acc[1] == 7.0 and acc[2] == pytest.approx(4.35)  # given, else twice the velocity
