@@ -355,6 +355,11 @@ def _table_spots(geometry, world, obj, rng, tries):
     n = max(tries, 40) * 25
     far = min(xmax - m, base_limits(geometry.layout)[0][1] + PUT_REACH)  # beyond, no base pose puts anything down
     pts = np.column_stack([rng.uniform(xmin + m, far, n), rng.uniform(ymin + m, ymax - m, n)])
+    reach = geometry.layout.extra.get("reach")
+    if reach is not None:  # a fixed base (see clutter_layout): only where its arm reaches
+        bx, by = geometry.layout.base[:2]
+        pts = pts[np.hypot(pts[:, 0] - bx, pts[:, 1] - by) <= reach]
+        n = len(pts)
     others = np.array([Q[:2, 3] for Q in world.objects.values()]).reshape(-1, 2)
     d = np.min(np.linalg.norm(pts[:, None, :] - others[None, :, :], axis=2), axis=1) if len(others) else np.full(n, 9.0)
     for gap in (0.06, 0.04, 0.025):

@@ -287,7 +287,7 @@ def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=No
         heading = _bearing(base, x, y)
         for kind, T in (grasps(w, heading, rng) if grasps else grasp_poses(geometry, obj, P, heading, kinds, rng, n_side=2)):
             # few IK seeds: most grasps found come from the first, and another base is cheaper than more seeds
-            wps = _waypoints(geometry, w, arm, T, kind, rng, obj, attempts=3, hand_check=True)
+            wps = _waypoints(geometry, w, arm, T, kind, rng, obj, attempts=3 if geometry.robot.mobile else 10, hand_check=True)
             if wps is not None:
                 n += 1
                 # the grasp found here travels with the world to pick, which offers it first

@@ -38,7 +38,7 @@ def robot_for(params, domain: str, two_arms: bool = False, mobile: bool = False)
     try:
         desc = describe(name)
     except UserError as exc:
-        raise UserError(f"problem.robot: {exc}") from None
+        raise UserError(f"problem.robot: {str(exc).rstrip('.')}.") from None
     if two_arms and len(desc.arms) < 2:
         raise UserError(f"The {domain} domain needs a robot with two arms, and the {desc.name} has "
                         f"{len(desc.arms)}; choose another problem.robot (e.g. \"pr2\").")
