@@ -7,10 +7,11 @@ Coordinates: ``q`` is Pinocchio's configuration (planar base and continuous
 joints stored as cos/sin); a "vector" has one float per DOF (angles in rad).
 Poses are 4x4 numpy arrays in metres.  Arms are named by the description.
 
-``Robot.load(name_or_path="pr2", torso_height=None, base_limits=((-5, 5), (-5, 5)), hold=None)``   (robot.py)
+``Robot.load(name_or_path="pr2", torso_height=None, base_limits=((-5, 5), (-5, 5)), hold=None, base_height=None)``
     a robot from its description (description.py; shipped: robots/*.toml, ``shipped_robots()``); every robot
     has a planar root. ``arms`` (names), ``mobile``, ``description``, ``home(arm)``, ``reach_seed(arm)``,
-    ``carry_poses(arm)``, ``torso_height`` (None without a torso), ``self_collision_source``;
+    ``carry_poses(arm)``, ``torso_height`` (None without a torso), ``base_height`` (the root link's z),
+    ``self_collision_source``;
     groups: ``base`` (x, y, theta), ``{arm}_arm`` (the arm's joints), ``{arm}_gripper`` (one DOF driving the
     finger joints). ``group(name) -> JointGroup`` (dof_names, lower, upper, circular, get, set, write,
     sample, wrap, within_bounds); ``get(q, group)``, ``set(q, group, values) -> q``;

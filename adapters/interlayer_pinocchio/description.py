@@ -41,6 +41,7 @@ class ArmDescription:
     gripper: GripperDescription
     reach_seed: tuple[float, ...] | None = None
     carry: tuple[tuple[float, float, float, float], ...] = ()
+    tool_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)  # tool point in the tool frame's axes (m)
 
 
 @dataclass(frozen=True)
@@ -57,6 +58,7 @@ class RobotDescription:
     velocity: tuple[tuple[str, float], ...] = ()  # overrides of the URDF's velocity limits
     acceleration: tuple[tuple[str, float], ...] = ()  # default: 2 x velocity
     skip: tuple[tuple[str, str], ...] | None = None  # self-collision pairs never checked (None: not given)
+    base_height: float = 0.0  # the root link's height above the floor (a fixed arm's mount)
 
     def where(self, field: str) -> str:
         return f"{self.path.name}: {field}"
@@ -121,7 +123,8 @@ def _parse(data: dict, path: Path) -> RobotDescription:
             r.fail(f"robot.package_dirs[{k}]", f"no folder {p}")
         dirs += (str(p),)
     base = r.table(data, "base", required=True)
-    r.keys(base, "base", {"kind"})
+    r.keys(base, "base", {"kind", "height"})
+    height = r.number(base, "base.height") if "height" in base else 0.0
     kind = r.string(base, "base.kind")
     if kind not in ("fixed", "planar"):
         r.fail("base.kind", f"{kind!r} is not a base kind: use \"fixed\" or \"planar\"")
@@ -152,11 +155,12 @@ def _parse(data: dict, path: Path) -> RobotDescription:
                 r.fail(f"self_collision.skip[{k}]", "give a pair of link names, e.g. [\"link_a\", \"link_b\"]")
         skip = tuple((a, b) for a, b in pairs)
     return RobotDescription(name, path, urdf, srdf, tuple(dict.fromkeys(dirs)), kind == "planar", arms, held, torso,
-                            vel, acc, skip)
+                            vel, acc, skip, height)
 
 
 def _arm(r: _Reader, a: dict, at: str) -> ArmDescription:
-    r.keys(a, at, {"name", "joints", "tool_frame", "approach", "closing", "home", "reach_seed", "carry", "gripper"})
+    r.keys(a, at, {"name", "joints", "tool_frame", "tool_offset", "approach", "closing", "home", "reach_seed", "carry",
+                   "gripper"})
     name = r.string(a, f"{at}.name")
     joints = tuple(r.string({"j": j}, f"{at}.joints[{k}]", key="j") for k, j in enumerate(r.list(a, f"{at}.joints")))
     if not joints:
@@ -171,9 +175,10 @@ def _arm(r: _Reader, a: dict, at: str) -> ArmDescription:
                   for k, c in enumerate(r.list(a, f"{at}.carry", default=[])))
     g = r.table(a, "gripper", required=True, field=f"{at}.gripper")
     r.keys(g, f"{at}.gripper", {"joints", "fingers", "opening"})
-    gj = r.table(g, "joints", required=True, field=f"{at}.gripper.joints")
+    # no joints: fixed fingers (the DOF drives nothing, its range is [0, 0])
+    gj = r.table(g, "joints", field=f"{at}.gripper.joints")
     gjoints = tuple((j, r.number(gj, f"{at}.gripper.joints.{j}", key=j)) for j in gj)
-    if not gjoints or any(m == 0 for _, m in gjoints):
+    if any(m == 0 for _, m in gjoints):
         r.fail(f"{at}.gripper.joints", "give each finger joint with a non-zero multiplier, e.g. { finger_joint = 1.0 }")
     fingers = opening = None
     if "fingers" in g:
@@ -185,8 +190,10 @@ def _arm(r: _Reader, a: dict, at: str) -> ArmDescription:
         opening = tuple(r.numbers(g, f"{at}.gripper.opening", 2))
     if (fingers is None) == (opening is None):
         r.fail(f"{at}.gripper", "give either fingers (two links) or opening (pad gap at the DOF's limits), not both")
+    offset = tuple(r.numbers(a, f"{at}.tool_offset", 3)) if "tool_offset" in a else (0.0, 0.0, 0.0)
     return ArmDescription(name, joints, r.string(a, f"{at}.tool_frame"), approach, closing, tuple(home),
-                          GripperDescription(gjoints, fingers, opening), None if seed is None else tuple(seed), carry)
+                          GripperDescription(gjoints, fingers, opening), None if seed is None else tuple(seed), carry,
+                          offset)
 
 
 def _axis(r: _Reader, text: str, field: str) -> tuple[float, float, float]:

@@ -82,7 +82,7 @@ class JointGroup:
 
     def get(self, q) -> np.ndarray:
         """Group vector read from ``q`` (angles wrapped to (-pi, pi])."""
-        out = np.empty(self.dof)
+        out = np.zeros(self.dof)  # (a fixed gripper's DOF is written by no joint: 0)
         for qi, di, mult in self._linear:
             out[di] = q[qi] / mult
         for qi, di in self._angular:

@@ -43,9 +43,10 @@ class Robot:
 
     def __init__(self, description, torso_height: float | None = None,
                  base_limits: tuple[tuple[float, float], tuple[float, float]] = ((-5.0, 5.0), (-5.0, 5.0)),
-                 hold: dict[str, float] | None = None):
+                 hold: dict[str, float] | None = None, base_height: float | None = None):
         """``torso_height`` overrides the held value of the description's torso joint, ``hold`` those of
-        any held joints; ``base_limits`` bound the base's x and y (m)."""
+        any held joints, ``base_height`` the description's ``base.height``; ``base_limits`` bound the base's
+        x and y (m)."""
         from interlayer.errors import UserError
 
         from .description import check_names
@@ -57,6 +58,9 @@ class Robot:
             str(desc.urdf), package_dirs=list(desc.package_dirs), root_joint=pin.JointModelPlanar(),
             geometry_types=[pin.GeometryType.COLLISION])
         check_names(desc, self.model, self.collision_model)
+        self.base_height = float(desc.base_height if base_height is None else base_height)
+        if self.base_height:  # the root link stands on a mount: the planar joint is placed that high
+            self.model.jointPlacements[1] = pin.SE3(np.eye(3), np.array([0.0, 0.0, self.base_height]))
         self.arms = tuple(a.name for a in desc.arms)
         self.mobile = desc.mobile
         self._arm = {a.name: a for a in desc.arms}
@@ -118,7 +122,8 @@ class Robot:
         rot = np.column_stack([x, y, np.cross(x, y)])
         frame = model.frames[fid]
         return model.addFrame(pin.Frame(f"interlayer_tool_{index}", frame.parentJoint, fid,
-                                        frame.placement * pin.SE3(rot, np.zeros(3)), pin.FrameType.OP_FRAME))
+                                        frame.placement * pin.SE3(rot, np.array(arm.tool_offset, dtype=float)),
+                                        pin.FrameType.OP_FRAME))
 
     # -- groups -----------------------------------------------------------------------------
     def moving_joints(self, group: str) -> frozenset[int]:
@@ -131,8 +136,9 @@ class Robot:
 
     def _gripper_group(self, arm) -> JointGroup:
         """One DOF driving the finger joints, each at its multiplier times the DOF; the DOF's range keeps
-        every finger joint within its limits."""
-        ids, linear, lo, hi = [], [], -np.inf, np.inf
+        every finger joint within its limits.  No joints (fixed fingers): a DOF driving nothing, range [0, 0]."""
+        ids, linear = [], []
+        lo, hi = (-np.inf, np.inf) if arm.gripper.joints else (0.0, 0.0)
         for jname, mult in arm.gripper.joints:
             jid = self.model.getJointId(jname)
             joint = self.model.joints[jid]
@@ -145,7 +151,7 @@ class Robot:
             lo, hi = max(lo, min(a, b)), min(hi, max(a, b))
             ids.append(jid)
             linear.append((joint.idx_q, 0, float(mult)))
-        name = arm.gripper.joints[0][0]
+        name = arm.gripper.joints[0][0] if arm.gripper.joints else f"{arm.name}_gripper"
         return JointGroup(f"{arm.name}_gripper", (name,), _frozen([lo]), _frozen([hi]), (False,),
                           tuple(ids), tuple(linear), ())
 
@@ -282,11 +288,11 @@ class Robot:
                  for _ in range(self.model.joints[j].nv)]
         return np.array([given.get(n, 2.0 * v) for n, v in zip(names, vel)])
 
-    @staticmethod
-    def base_pose(q) -> np.ndarray:
-        """World pose (4x4) of the root link (z = 0) from the planar root entries of ``q``."""
+    def base_pose(self, q) -> np.ndarray:
+        """World pose (4x4) of the root link (z = :attr:`base_height`) from the planar root entries of ``q``."""
         c, s = q[2], q[3]
-        return np.array([[c, -s, 0.0, q[0]], [s, c, 0.0, q[1]], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+        return np.array([[c, -s, 0.0, q[0]], [s, c, 0.0, q[1]], [0.0, 0.0, 1.0, self.base_height],
+                         [0.0, 0.0, 0.0, 1.0]])
 
     def collision_links(self, group: str | None = None) -> tuple[str, ...]:
         """Collision geometry names (link name + ``_0``) that move with ``group`` (None: all)."""

@@ -288,7 +288,9 @@ def _free_bases(geometry, world, x, y, rng, tries):
     most 20 samples each): an object in a cubby leaves a narrow free sector, and IK, not this check,
     is what costs."""
     yield tuple(world.base)
-    if not geometry.robot.mobile:  # a fixed base: where it stands is the only base pose
+    if not geometry.robot.mobile:  # a fixed base: where it stands is the only base pose; more grasps are tried there
+        if _base_free(geometry, world, world.base):
+            yield from (tuple(world.base) for _ in range(tries // 10))
         return
     free = 0
     for _ in range(20 * tries):
@@ -345,6 +347,8 @@ def _spots(problem, world, obj, loc, rng, tries):
     m = (o.size[0] if o.shape == "cylinder" else 0.5 * math.hypot(o.size[0], o.size[1])) + 0.01
     z = table_top(geometry.layout) + o.height / 2 + REST_GAP
     others = {k: v for k, v in geometry.layout.regions.items() if k not in (loc, "table")}
+    if xmin + m > xmax - m or ymin + m > ymax - m:  # the object does not fit into the region
+        return
     for _ in range(tries):
         x, y = rng.uniform(xmin + m, xmax - m), rng.uniform(ymin + m, ymax - m)
         if math.hypot(x - world.base[0], y - world.base[1]) > geometry.layout.extra.get("reach", 1.2):

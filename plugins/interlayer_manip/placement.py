@@ -11,7 +11,7 @@ from .state import pose4
 EDGE_GAP = 0.15  # m: a fixed base's origin stands this far in front of the table's edge (its footprint)
 _DIRECTIONS = (-0.9, -0.45, 0.0, 0.45, 0.9)  # rad off the base's x axis
 _RADII = tuple(round(0.2 + 0.05 * k, 2) for k in range(21))  # 0.2 .. 1.2 m
-_VERSION = 3  # bump when the method changes: cached bands of the old one are ignored
+_VERSION = 4  # bump when the method changes: cached bands of the old one are ignored
 
 
 def reach_band(desc, arm: str, top: float, height: float, kind: str = "side") -> tuple[float, float]:
@@ -41,7 +41,7 @@ def _measure(robot, arm, top, height, kind):
 
     cw = CollisionWorld(robot)
     cw.add_box("table", (2.0, 3.0, 0.1), pose4(EDGE_GAP + 1.0, 0.0, top - 0.05, 0.0))
-    q = robot.default_q((0.0, 0.0, 0.0))
+    q = robot.set(robot.default_q((0.0, 0.0, 0.0)), f"{arm}_arm", robot.reach_seed(arm))  # the first IK seed
     rng = np.random.default_rng(0)
     z = top + height
     good = []

@@ -12,14 +12,12 @@ def make_problem(params, seed):
 
 
 def _make_problem(params, seed):
-    from interlayer.domain import Problem
     from interlayer.errors import UserError
     from interlayer_manip.params import fixed_placement
     from interlayer_manip.placement import hand_width
     from interlayer_manip.state import OPEN_CLEARANCE, PADDING
-    from interlayer_manip.world import ManipulationGeometry, load_robot
+    from interlayer_manip.world import load_robot
 
-    from .domain import DOMAIN
     from .scene import make_layout
 
     goal = params["goal"]
@@ -50,6 +48,19 @@ def _make_problem(params, seed):
         layout = make_layout(seed, goal, grasps, float(r), n, blocker_radius=blocker, wider=wider, **where)
     except ValueError as exc:
         raise UserError(f"problem.clutter={n}: {exc}; use fewer.") from None
+    return cubby_problem(layout, robot, goal, {"domain": "pr2", "params": dict(params), "seed": seed},
+                         name=f"pr2-{goal}" + (f"-clutter{n}" if n else ""))
+
+
+def cubby_problem(layout, robot, goal: str, source: dict, name: str):
+    """The cubby pick's task model (domain.py) over ``layout`` for ``robot``: every object of the layout stands
+    on the table; ``goal`` "hold" (some arm holds ``layout.target``), "place" (the target in the region
+    goal_spot) or "tidy" (... and every hand empty). ``source`` names the domain that rebuilds the problem."""
+    from interlayer.domain import Problem
+    from interlayer_manip.world import ManipulationGeometry
+
+    from .domain import DOMAIN
+
     geometry = ManipulationGeometry(layout, robot=robot)
     arms = geometry.robot.arms
     objects = {o.name: "obj" for o in layout.objects}
@@ -71,9 +82,8 @@ def _make_problem(params, seed):
                     "place": f"(At {t} goal_spot)",
                     # ... and nothing left in the hands: the blocker must be put down somewhere
                     "tidy": f"(and (At {t} goal_spot) {empty})"}[goal]
-    return Problem(DOMAIN, objects, frozenset(init), goal_formula, geometry,
-                   {"domain": "pr2", "params": dict(params), "seed": seed, "layout": layout.to_json()},
-                   name=f"pr2-{goal}" + (f"-clutter{n}" if n else ""))
+    return Problem(DOMAIN, objects, frozenset(init), goal_formula, geometry, {**source, "layout": layout.to_json()},
+                   name=name)
 
 
 @hookimpl
