@@ -469,14 +469,14 @@ def test_a_box_whose_every_grasp_puts_the_fingers_into_a_wall_is_unsolvable_nami
     path.write_text(json.dumps(wall_scene(gap=0.025)))  # as nonmonotonic_4_1.json's green0: the fingers are thicker
     result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=60"])
     assert result.status == "unsolvable"
-    assert "every grasp of a that fits the gripper puts the pr2's fingers into wall" in result.reason, result.reason
+    assert "every grasp of a that fits the gripper puts the PR2's fingers into wall" in result.reason, result.reason
 
 
 @needs_shared
 def test_nonmonotonic_green0_is_unsolvable_because_the_fingers_do_not_fit_beside_the_wall():
     result = api.solve(str(SHARED / "nonmonotonic_4_1.json"), ["planner.time_limit=120"])
     assert result.status == "unsolvable"
-    assert "every grasp of green0 that fits the gripper puts the pr2's fingers into obst1" in result.reason, result.reason
+    assert "every grasp of green0 that fits the gripper puts the PR2's fingers into obst1" in result.reason, result.reason
 
 
 @needs_shared

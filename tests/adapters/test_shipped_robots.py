@@ -14,12 +14,10 @@ pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 # Widest opening (m) of each shipped gripper, measured once on its collision geometry (robot.gripper_range) and
 # bounded by what its maker states: PR2 90 mm, Panda 80 mm, PAL gripper (TIAGo Pro) 80 mm; the UR5 "gripper" of
 # example-robot-data is two fixed boxes 55 mm apart (the URDF's own numbers, measured below).
-OPENING = {"pr2": (0.085, 0.095), "panda": (0.075, 0.085), "ur5_gripper": (0.054, 0.056), "tiago": (0.075, 0.085)}
+OPENING = {"PR2": (0.085, 0.095), "Panda": (0.075, 0.085), "UR5": (0.054, 0.056), "TIAGo Pro": (0.075, 0.085)}
 
 
-# The TIAGo's self-collision pairs are sampled on its first load (minutes; cached afterwards).
-@pytest.fixture(scope="module", params=[pytest.param(n, marks=pytest.mark.slow) if n == "tiago" else n
-                                        for n in shipped_robots()])
+@pytest.fixture(scope="module", params=shipped_robots())
 def robot(request):
     return Robot.load(request.param)
 
