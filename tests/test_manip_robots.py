@@ -64,7 +64,7 @@ def test_a_domain_refuses_a_robot_that_lacks_what_it_needs_in_one_sentence(domai
     with pytest.raises(UserError) as error:
         api.prepare(str(ROOT / "examples" / f"{domain}.toml"), ["problem.robot=panda", *overrides])
     message = str(error.value)
-    assert needs in message and "panda" in message and "problem.robot" in message
+    assert needs in message and "Panda" in message and "problem.robot" in message
     assert "\n" not in message and message.endswith(".")
 
 

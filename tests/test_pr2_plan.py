@@ -91,7 +91,7 @@ def test_task_model_is_small_and_uniform():
     config = resolve_config(EXAMPLE, ["problem.clutter=6"])
     model = abstract(build_problem(PluginHost(), config))
     assert model.uniformity == []
-    assert model.geometric == {"Obstructs": "negative", "PDObstructs": "negative"}
+    assert model.geometric == {"Obstructs": "negative", "PDObstructs": "negative", "NoBase": "negative"}
     objs = [o for o, t in model.objects.items() if t == "obj"]
     assert len(objs) == 10
     # 2 arms: bpfg + gpfg per (obj, arm), bpfpd + gpfpd per (obj, arm, loc) with 2 locs

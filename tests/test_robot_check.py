@@ -42,7 +42,7 @@ def test_robot_check_reports_the_panda(entry_point, capsys):
     assert main(["robot", "check", "panda", "--json"]) == 0
     out, err = capsys.readouterr()
     report = json.loads(out)  # alone on stdout
-    assert report["robot"] == "panda" and report["base"] == "fixed" and report["dof"] == 9
+    assert report["robot"] == "Panda" and report["base"] == "fixed" and report["dof"] == 9
     (arm,) = report["arms"]
     assert arm["joints"] == [f"panda_joint{i}" for i in range(1, 8)]
     assert (arm["tool_frame"], arm["approach"], arm["closing"]) == ("panda_hand_tcp", "+z", "y")

@@ -179,7 +179,7 @@ def test_held_joint_overrides_are_checked_against_the_urdf():
 
     with pytest.raises(UserError, match=r"^pr2.toml: torso_height: 0.5 is outside torso_lift_joint's range \[0, 0.31\]$"):
         Robot.load("pr2", torso_height=0.5)
-    with pytest.raises(UserError, match=r"^panda.toml: robot.torso: the panda has no torso"):
+    with pytest.raises(UserError, match=r"^panda.toml: robot.torso: the Panda has no torso"):
         Robot.load("panda", torso_height=0.2)
     with pytest.raises(UserError, match=r"^panda.toml: hold.panda_joint4: 0.5 is outside panda_joint4's range \[-3.072, -0.0698\]$"):
         Robot.load("panda", hold={"panda_joint4": 0.5})
