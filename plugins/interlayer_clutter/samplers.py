@@ -83,7 +83,8 @@ def _cells_near(layout, x, y, reach, heading):
         return None
     centres, res = cells
     key = (id(centres), float(x), float(y), tuple(reach), heading)
-    if _NEAR.get(key, (None,))[0] is not centres:  # a search asks about one spot many times
+    hit = _NEAR.get(key)
+    if hit is None or hit[0] is not centres:  # a search asks about one spot many times
         d = np.hypot(centres[:, 0] - x, centres[:, 1] - y)
         keep = (d >= reach[0]) & (d <= reach[1])
         if heading is not None:  # the direction from the spot to the cell, within 0.8 rad of heading + pi
@@ -91,8 +92,8 @@ def _cells_near(layout, x, y, reach, heading):
             keep &= np.abs(np.remainder(a - heading, 2 * math.pi) - math.pi) <= 0.8
         if len(_NEAR) > 512:
             _NEAR.clear()
-        _NEAR[key] = (centres, centres[keep])
-    return _NEAR[key][1], res
+        hit = _NEAR[key] = (centres, centres[keep])
+    return hit[1], res  # (not read back: another thread's solve may clear the cache in between)
 
 
 _NEAR: dict = {}  # (id of the cells, x, y, reach, heading) -> (the cells, those in the annulus)
