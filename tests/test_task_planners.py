@@ -182,3 +182,118 @@ def test_an_incomplete_search_without_a_plan_is_no_proof(host):
     res = planner.plan(model, model.init, 30)
     assert res.status == "incomplete" and "incomplete" in res.reason
     assert host["task_planners"].get("ff").factory({}).plan(model, model.init, 30).status == "unsolvable"  # GBFS proves it
+
+
+# -- the adapter on Unified-Planning's public API: the engine's subclass, a check of what it relies on -------
+
+@pytest.mark.parametrize("where, name", [
+    ("unified_planning.engines.pddl_planner", "PDDLPlanner._get_cmd"),  # a hook an engine implements
+    ("unified_planning.engines.pddl_planner", "PDDLPlanner._solve"),  # the hook the adapter overrides
+    ("unified_planning.model", "Problem.kind"),  # a property it overrides for speed
+    ("unified_planning.model.mixins", "InitialStateMixin.explicit_initial_values"),  # one of Problem's it reads
+])
+def test_a_unified_planning_that_changed_what_the_adapter_relies_on_stops_the_run_in_one_sentence(
+        monkeypatch, capsys, gripper_example, where, name):
+    """Mutation: `_import_up` no longer calls compat.check (the run goes on into UP's own code)."""
+    import importlib
+    from importlib.metadata import version
+
+    from interlayer.cli import main
+
+    from interlayer_up import compat
+
+    cls_name, attr = name.split(".")
+    monkeypatch.delattr(getattr(importlib.import_module(where), cls_name), attr)
+    compat.check.cache_clear()
+    try:
+        code = main(["plan", gripper_example, "-q"])
+    finally:
+        monkeypatch.undo()
+        compat.check.cache_clear()
+    release = ".".join(version("unified-planning").split(".")[:2])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert err.strip().splitlines()[-1] == (f"error: unified-planning {release} changed `{name}`: Interlayer's UP adapter "
+                                            f"supports >=1.3,<1.4; pin it or update the adapter.")
+
+
+def test_an_engine_without_the_attributes_the_adapter_reads_is_named(host, monkeypatch):
+    """Mutation: `_engine` no longer calls compat.check_engine (the run fails later with an AttributeError)."""
+    from unified_planning.engines.pddl_planner import PDDLPlanner
+
+    from interlayer_up.compat import UnsupportedUnifiedPlanning
+
+    init = PDDLPlanner.__init__
+
+    def init_without_requirements(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        del self._needs_requirements
+
+    monkeypatch.setattr(PDDLPlanner, "__init__", init_without_requirements)
+    model = corridor()
+    with pytest.raises(UnsupportedUnifiedPlanning, match=r"^unified-planning \d+\.\d+ changed `PDDLPlanner._needs_requirements`: "):
+        host["task_planners"].get("fast-downward").factory({"warm": False}).plan(model, model.init, 30)
+
+
+@pytest.mark.parametrize("warm", [False, True])
+def test_each_call_runs_in_a_folder_of_its_own_and_ups_functions_stay_ups(host, tmp_path, monkeypatch, warm):
+    """Fast Downward writes output.sas into its working directory: UP runs every command in the process's
+    own, which concurrent calls share. Mutation: `_run_in` starts the process without `cwd=folder`."""
+    from unified_planning.engines import pddl_planner
+
+    from interlayer_up import planner as up_planner
+
+    run_command, real, folders = pddl_planner.run_command, up_planner._run_in, []
+
+    def run_in(folder, cmd, timeout):  # where a process it starts runs, then the engine's command
+        folders.append((folder, real(folder, ["pwd"], 30)[1][0][0].strip()))
+        return real(folder, cmd, timeout)
+
+    monkeypatch.setattr(up_planner, "_run_in", run_in)
+    monkeypatch.chdir(tmp_path)
+    model = corridor()
+    res = host["task_planners"].get("fast-downward").factory({"warm": warm}).plan(model, model.init, 30)
+    assert res.status == "solved", res.reason
+    assert list(tmp_path.iterdir()) == []
+    assert pddl_planner.run_command is run_command and run_command.__module__ == "unified_planning.engines.pddl_planner"
+    if not warm:  # (the warm driver's requests: tests/test_warm_fast_downward.py)
+        assert len(folders) == 1 and folders[0][0] == folders[0][1] != str(tmp_path)
+
+
+def test_a_command_past_its_timeout_is_killed_with_every_process_it_started(tmp_path):
+    """The engine's session is killed at the time limit, not only the process UP started (Fast Downward's
+    driver starts the translator and the search). Mutation: `_run_in` kills only `proc.pid` (then the
+    call waits for the grandchild: the thread does not end)."""
+    import os
+    import sys
+    import threading
+    import time
+
+    from interlayer_up.planner import _run_in
+
+    cmd = ["sh", "-c", f"{sys.executable} -c 'import time; time.sleep(600)' & echo $! > pid; wait"]
+    answer = []
+    call = threading.Thread(target=lambda: answer.append(_run_in(str(tmp_path), cmd, 1.0)), daemon=True)
+    call.start()
+    call.join(120)
+    pid = int((tmp_path / "pid").read_text())
+    try:
+        assert not call.is_alive()
+        timed_out, _, code = answer[0]
+        assert timed_out and code < 0
+        end = time.monotonic() + 30  # it is reaped by init: wait for that state
+        while _alive(pid) and time.monotonic() < end:
+            time.sleep(0.05)
+        assert not _alive(pid)
+    finally:
+        if _alive(pid):
+            os.kill(pid, 9)
+
+
+def _alive(pid: int) -> bool:
+    from pathlib import Path
+
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split(") ")[1][0] != "Z"
+    except (OSError, IndexError):
+        return False
