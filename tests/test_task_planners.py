@@ -297,3 +297,43 @@ def _alive(pid: int) -> bool:
         return Path(f"/proc/{pid}/stat").read_text().split(") ")[1][0] != "Z"
     except (OSError, IndexError):
         return False
+
+
+def test_an_engine_whose_solve_no_longer_reaches_the_adapters_is_named(host, monkeypatch):
+    """up-fast-downward's optimal engine adds a goal action, then calls PDDLPlanner's _solve through
+    super(), where the adapter's runs the command in its folder. An engine that calls UP's own directly
+    would run UP's way, unseen. Mutation: `_solve_locked` no longer checks `engine.reached`."""
+    from unified_planning.engines.pddl_planner import PDDLPlanner
+    from up_fast_downward import FastDownwardOptimalPDDLPlanner
+
+    from interlayer_up.compat import UnsupportedUnifiedPlanning
+
+    monkeypatch.setattr(FastDownwardOptimalPDDLPlanner, "_solve",
+                        lambda self, problem, heuristic=None, timeout=None, output_stream=None:
+                        PDDLPlanner._solve(self, problem, heuristic, timeout, output_stream))
+    model = corridor()
+    with pytest.raises(UnsupportedUnifiedPlanning, match=r"^up-fast-downward \d+\.\d+ changed `FastDownwardOptimalPDDLPlanner._solve`: "
+                                                         r"Interlayer's UP adapter supports up-fast-downward >=1.0,<1.1; "
+                                                         r"pin it or update the adapter.$"):
+        host["task_planners"].get("fast-downward-opt").factory({"warm": False}).plan(model, model.init, 30)
+
+
+def test_a_problem_whose_class_cannot_be_swapped_is_named(monkeypatch):
+    """The adapter gives problems it no longer changes a subclass of Problem (kind computed once, only
+    the true initial atoms written): instances need a __dict__. Mutation: compat.check no longer looks."""
+    import unified_planning.model
+
+    from interlayer_up import compat
+
+    class SlottedProblem:  # what UP would be with __slots__ all the way (its properties still there)
+        __slots__ = ()
+        kind = property(lambda self: None)
+
+    monkeypatch.setattr(unified_planning.model, "Problem", SlottedProblem)
+    compat.check.cache_clear()
+    try:
+        with pytest.raises(compat.UnsupportedUnifiedPlanning, match=r"^unified-planning \d+\.\d+ changed `Problem.__dict__`: "):
+            compat.check()
+    finally:
+        monkeypatch.undo()
+        compat.check.cache_clear()

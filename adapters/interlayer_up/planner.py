@@ -138,10 +138,12 @@ def _in_folder_class():
         an engine's own ``_solve`` (Fast Downward's optimal one adds a goal action) calls this one."""
 
         warm_driver = None  # a warm.WarmDriver for this engine's command, set by _engine
+        reached = False  # this _solve ran (an engine's own _solve may no longer call it: _solve_locked)
 
         def _solve(self, problem, heuristic=None, timeout=None, output_stream=None):
             if output_stream is not None:  # never from the adapter: UP's own way, which streams it
                 return super()._solve(problem, heuristic, timeout, output_stream)
+            self.reached = True
             writer = PDDLWriter(problem, self._needs_requirements, self._rewrite_bool_assignments)
             with tempfile.TemporaryDirectory(prefix="interlayer-fd-") as folder:
                 domain, task, plan_file = (os.path.join(folder, f) for f in ("domain.pddl", "problem.pddl", "plan.txt"))
@@ -462,6 +464,8 @@ def _solve_locked(engine_name, params, problem, timeout, warm):
         if not chain:
             compiled.__class__ = _sparse_problem_class()  # our own clone: only the PDDL writer reads it
         res = engine.solve(compiled, timeout=timeout)
+        if isinstance(engine, _in_folder_class()) and not engine.reached:
+            raise compat.bypassed(engine)
     if res.status in (S.SOLVED_SATISFICING, S.SOLVED_OPTIMALLY) and res.plan is not None:
         plan = res.plan
         for step in reversed(chain):
