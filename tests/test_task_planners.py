@@ -186,35 +186,62 @@ def test_an_incomplete_search_without_a_plan_is_no_proof(host):
 
 # -- the adapter on Unified-Planning's public API: the engine's subclass, a check of what it relies on -------
 
-@pytest.mark.parametrize("where, name", [
-    ("unified_planning.engines.pddl_planner", "PDDLPlanner._get_cmd"),  # a hook an engine implements
-    ("unified_planning.engines.pddl_planner", "PDDLPlanner._solve"),  # the hook the adapter overrides
-    ("unified_planning.model", "Problem.kind"),  # a property it overrides for speed
-    ("unified_planning.model.mixins", "InitialStateMixin.explicit_initial_values"),  # one of Problem's it reads
-])
-def test_a_unified_planning_that_changed_what_the_adapter_relies_on_stops_the_run_in_one_sentence(
-        monkeypatch, capsys, gripper_example, where, name):
-    """Mutation: `_import_up` no longer calls compat.check (the run goes on into UP's own code)."""
+def _without(monkeypatch, where: str, name: str):
+    """Unified-Planning as if it no longer had ``name`` (a class's attribute in module ``where``), with
+    the adapter's check to be run again."""
     import importlib
-    from importlib.metadata import version
-
-    from interlayer.cli import main
 
     from interlayer_up import compat
 
     cls_name, attr = name.split(".")
     monkeypatch.delattr(getattr(importlib.import_module(where), cls_name), attr)
     compat.check.cache_clear()
-    try:
-        code = main(["plan", gripper_example, "-q"])
-    finally:
-        monkeypatch.undo()
-        compat.check.cache_clear()
+
+
+def _changed(name: str) -> str:
+    from importlib.metadata import version
+
     release = ".".join(version("unified-planning").split(".")[:2])
+    return (f"unified-planning {release} changed `{name}`: Interlayer's UP adapter supports >=1.3,<1.4; "
+            "pin it or update the adapter.")
+
+
+@pytest.fixture
+def check_again():
+    from interlayer_up import compat
+
+    yield
+    compat.check.cache_clear()  # (after monkeypatch's undo: fixtures end in reverse order)
+
+
+@pytest.mark.parametrize("where, name", [
+    ("unified_planning.engines.pddl_planner", "PDDLPlanner._get_cmd"),  # a hook an engine implements
+    ("unified_planning.engines.pddl_planner", "PDDLPlanner._solve"),  # the hook the adapter overrides
+    ("unified_planning.model", "Problem.kind"),  # a property it overrides for speed
+    ("unified_planning.model.mixins", "InitialStateMixin.explicit_initial_values"),  # one of Problem's it reads
+])
+def test_a_unified_planning_that_changed_what_the_adapter_relies_on_is_named_in_one_sentence(
+        host, check_again, monkeypatch, where, name):
+    """Mutation: `_import_up` no longer calls compat.check (the call goes on into UP's own code)."""
+    from interlayer_up.compat import UnsupportedUnifiedPlanning
+
+    _without(monkeypatch, where, name)
+    model = corridor()
+    with pytest.raises(UnsupportedUnifiedPlanning) as changed:
+        host["task_planners"].get("fast-downward").factory({}).plan(model, model.init, 30)
+    assert str(changed.value) == _changed(name)
+
+
+def test_a_changed_unified_planning_ends_the_cli_with_one_line_and_exit_code_2(check_again, monkeypatch, capsys,
+                                                                                gripper_example):
+    pytest.importorskip("coal", reason="the Gripper-2D domain's scene needs Coal")
+    from interlayer.cli import main
+
+    _without(monkeypatch, "unified_planning.engines.pddl_planner", "PDDLPlanner._get_cmd")
+    code = main(["plan", gripper_example, "-q"])
     err = capsys.readouterr().err
     assert code == 2, err
-    assert err.strip().splitlines()[-1] == (f"error: unified-planning {release} changed `{name}`: Interlayer's UP adapter "
-                                            f"supports >=1.3,<1.4; pin it or update the adapter.")
+    assert err.strip().splitlines() == [f"error: {_changed('PDDLPlanner._get_cmd')}"]
 
 
 def test_an_engine_without_the_attributes_the_adapter_reads_is_named(host, monkeypatch):
@@ -318,7 +345,7 @@ def test_an_engine_whose_solve_no_longer_reaches_the_adapters_is_named(host, mon
         host["task_planners"].get("fast-downward-opt").factory({"warm": False}).plan(model, model.init, 30)
 
 
-def test_a_problem_whose_class_cannot_be_swapped_is_named(monkeypatch):
+def test_a_problem_whose_class_cannot_be_swapped_is_named(check_again, monkeypatch):
     """The adapter gives problems it no longer changes a subclass of Problem (kind computed once, only
     the true initial atoms written): instances need a __dict__. Mutation: compat.check no longer looks."""
     import unified_planning.model
@@ -331,9 +358,6 @@ def test_a_problem_whose_class_cannot_be_swapped_is_named(monkeypatch):
 
     monkeypatch.setattr(unified_planning.model, "Problem", SlottedProblem)
     compat.check.cache_clear()
-    try:
-        with pytest.raises(compat.UnsupportedUnifiedPlanning, match=r"^unified-planning \d+\.\d+ changed `Problem.__dict__`: "):
-            compat.check()
-    finally:
-        monkeypatch.undo()
-        compat.check.cache_clear()
+    with pytest.raises(compat.UnsupportedUnifiedPlanning) as changed:
+        compat.check()
+    assert str(changed.value) == _changed("Problem.__dict__")
