@@ -361,3 +361,41 @@ def test_a_problem_whose_class_cannot_be_swapped_is_named(check_again, monkeypat
     with pytest.raises(compat.UnsupportedUnifiedPlanning) as changed:
         compat.check()
     assert str(changed.value) == _changed("Problem.__dict__")
+
+
+UP_NEEDS_MORE = """
+import logging, sys
+logging.basicConfig(level=logging.WARNING, format="%(message)s")
+from interlayer_up import planner
+
+real = planner._stand_in
+
+def answering_nothing(name, classes):  # as if UP needed names of ConfigSpace the stand-in does not answer
+    stub = real(name, classes)
+    if name == "ConfigSpace":
+        del stub.ConfigurationSpace
+        stub.__getattr__ = lambda attr: (_ for _ in ()).throw(AttributeError(attr))
+    return stub
+
+planner._stand_in = answering_nothing
+planner._quiet_environment()
+import ConfigSpace
+from unified_planning.engines import engine
+print(engine.ConfigurationSpace is ConfigSpace.ConfigurationSpace)
+"""
+
+
+def test_a_unified_planning_that_needs_more_than_the_stand_ins_answer_loads_without_them():
+    """The stand-ins for ConfigSpace and networkx name nothing of UP's: a UP that uses them otherwise
+    loads the real modules (named in a warning), slower but whole. Mutation: `_import_up_without_configspace`
+    no longer catches the failed import (UP's ImportError ends the run)."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", UP_NEEDS_MORE], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["True"]
+    assert out.stderr.startswith("Unified-Planning did not load beside the UP adapter's stand-ins for ConfigSpace and "
+                                 "networkx (ImportError: cannot import name 'ConfigurationSpace' from 'ConfigSpace'")
+    assert out.stderr.rstrip().endswith("; it loads with the real ones instead, a slower start.")
+    assert len(out.stderr.strip().splitlines()) == 1

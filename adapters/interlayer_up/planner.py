@@ -70,21 +70,35 @@ _STAND_INS = {"ConfigSpace": ("ConfigurationSpace",), "networkx": ("DiGraph",)}
 
 def _import_up_without_configspace():
     stubs = {name: _stand_in(name, classes) for name, classes in _STAND_INS.items() if name not in sys.modules}
+    before = set(sys.modules)
     sys.modules.update(stubs)
+    failed = None
     try:
-        import unified_planning.engines.factory as factory
-        import unified_planning.shortcuts  # noqa: F401
-        from unified_planning.environment import get_environment
-
-        if getattr(factory, "inspect", None) is inspect:  # else UP no longer looks: nothing to save
-            factory.inspect = _ShallowInspect("inspect")
-        get_environment()  # its engine factory imports every installed engine (up_pyperplan too)
+        _load_up(shallow=True)
+    except Exception as exc:  # a UP that needs more of them than the stand-ins answer: forget what it loaded
+        failed = f"{type(exc).__name__}: {exc}"
+        for name in set(sys.modules) - before:
+            del sys.modules[name]
     finally:
         for name, stub in stubs.items():
             if sys.modules.get(name) is stub:
                 del sys.modules[name]
         if "networkx" in stubs:  # only annotations kept the stand-in class: later uses get the real one
             del stubs["networkx"].DiGraph
+    if failed is not None:
+        log.warning("Unified-Planning did not load beside the UP adapter's stand-ins for ConfigSpace and networkx "
+                    "(%s); it loads with the real ones instead, a slower start.", failed)
+        _load_up(shallow=False)
+
+
+def _load_up(shallow: bool):
+    import unified_planning.engines.factory as factory
+    import unified_planning.shortcuts  # noqa: F401
+    from unified_planning.environment import get_environment
+
+    if shallow and getattr(factory, "inspect", None) is inspect:  # else UP no longer looks: nothing to save
+        factory.inspect = _ShallowInspect("inspect")
+    get_environment()  # its engine factory imports every installed engine (up_pyperplan too)
 
 
 class _ShallowInspect(types.ModuleType):
