@@ -114,9 +114,8 @@ class PBSampler(ClutterSampler):
             if fits:  # refined as a failure of its own kind: the task planner learns (BadGrasp obj goal)
                 self.wanted[obj] = fits
                 kinds = sorted({_kind(np.linalg.inv(F)) for F in fits})
-                yield Candidate((), {HELD_GRASP: f"the grasp {obj} is held with puts the hand into a fixed obstacle at its "
-                                                 f"goal pose; a {' or '.join(kinds)} grasp of another side fits there"},
-                                "regrasp")
+                yield Candidate((), {HELD_GRASP: f"holding {obj} as it does, the hand hits a fixed obstacle at {obj}'s goal "
+                                                 f"pose; another {' or '.join(kinds)} grasp is clear there"}, "regrasp")
 
     def regrasps(self, problem, world, obj, arm, variants) -> list:
         """Grasps (tool_T_object) of ``obj`` other than the held one whose hand, opened as
@@ -205,7 +204,7 @@ def go_to(problem, step, world, rng):
 
 
 def _kind(T) -> str:
-    """A tool pose's (or a grasp's) kind: "top" when its x axis points down."""
+    """The kind of a tool pose (or of object_T_tool): "top" when its x axis points down."""
     return "top" if abs(T[2, 0]) > 0.7 else "side"
 
 
