@@ -216,7 +216,8 @@ class ClutterSampler(EpochState):
                 continue
             free += 1
             w = replace(w0, base=base)
-            for kind, T in grasp_poses(geometry, obj, P, _bearing(base, x, y), kinds, rng, n_side=2):
+            for kind, T in self.order_grasps(problem, obj, P, grasp_poses(geometry, obj, P, _bearing(base, x, y), kinds, rng,
+                                                                          n_side=2)):
                 wps = _waypoints(geometry, w, arm, T, kind, rng, obj, splits=LINE_SPLITS)
                 if wps is None:
                     continue
@@ -231,6 +232,11 @@ class ClutterSampler(EpochState):
             self.misses[key] = misses + 1  # the next call searches with other samples
             check_hand_fits(problem, world, obj)
         return found
+
+    def order_grasps(self, problem, obj, P, grasps):
+        """The order in which a grasp search tries the grasps of obj (at pose P) offered at one base: the
+        first that IK reaches is that base's candidate. A subclass may prefer some (a regrasp's)."""
+        return grasps
 
     def ranked_grasps(self, problem, world, obj, arm):
         """The candidates ranked in ``world``: ((approach hits, transit-line hits), drive, base, kind,

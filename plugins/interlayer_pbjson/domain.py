@@ -20,6 +20,11 @@ obstructions are learned with two arguments. What it adds:
   other objects do; picking ?o with the other arm (the only way it moves) deletes it, and a reset
   forgets it with every learned fact, to be sampled anew. It lets a goal with a choice (hold any one
   of a class) turn to another object or arm instead of giving up.
+* ``(BadGrasp ?o ?pd)``: the grasp ?o is held with cannot put it at its goal pose ?pd = ``gpfgp_<o>_<arm>``,
+  and another grasp could (a failure of kind ``held_grasp``: every goal variant puts the hand into a
+  fixed obstacle, and a grasp of another side or kind is clear there). Picking ?o again deletes it, so
+  the task planner puts ?o down and takes it again (regrasp); the pick generator then offers first the
+  grasps that fit at the goal.
 * kitchen semantics as conditional effects: placing on a sink cleans, placing a clean object on a
   stove cooks.
 * ``go_home`` drives the base back to its start and the empty arms to their start configuration
@@ -36,6 +41,7 @@ from interlayer.domain import ActionSpec, DomainSpec, Skolem
 from interlayer.refine import NO_CANDIDATES
 
 SLOTS = 2
+HELD_GRASP = "held_grasp"  # the failure kind of a put-down at the goal that another grasp could do (BadGrasp)
 
 
 def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home: bool, go_to: bool = False) -> DomainSpec:
@@ -82,8 +88,9 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
                       "IsGPFGP": ("pdpose", "obj", "arm")})
         skolems += [Skolem("bpfgp", ("obj", "arm"), "bpose", "IsBPFGP", "a base pose from which arm can put obj at its goal pose"),
                     Skolem("gpfgp", ("obj", "arm"), "pdpose", "IsGPFGP", "a gripper pose putting obj at its goal pose")]
-        preds["Occupies"] = ("obj", "obj")
-        pick_eff += ["(not (AtGoalPose ?o))", "(forall (?x - obj) (not (Occupies ?o ?x)))"]
+        preds.update({"Occupies": ("obj", "obj"), "BadGrasp": ("obj", "pdpose")})
+        pick_eff += ["(not (AtGoalPose ?o))", "(forall (?x - obj) (not (Occupies ?o ?x)))",
+                     "(forall (?p - pdpose) (not (BadGrasp ?o ?p)))"]  # a new grasp
     actions = [
         ActionSpec(
             name="pick",
@@ -106,9 +113,11 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
             parameters=(("?o", "obj"), ("?arm", "arm"), ("?bp", "bpose"), ("?pd", "pdpose")),
             precondition=f"""(and (Holding ?o ?arm) (HasGoalPose ?o) (IsBPFGP ?bp ?o ?arm) (IsGPFGP ?pd ?o ?arm)
                                   (forall (?b - obj) (and (not (PDObstructs ?b ?pd)) (not (Occupies ?b ?o))))
+                                  (not (BadGrasp ?o ?pd))
                                   {f'(not ({done}))' if done else ''})""",
             effect="(and (not (Holding ?o ?arm)) (HandEmpty ?arm) (Resting ?o) (AtGoalPose ?o))",
-            learn={"obstruction": ("(PDObstructs ?blocker ?pd)",)}, pose_generator="pbjson:place"))
+            learn={"obstruction": ("(PDObstructs ?blocker ?pd)",), HELD_GRASP: ("(BadGrasp ?o ?pd)",)},
+            pose_generator="pbjson:place"))
     if done:
         actions.append(ActionSpec(name=final, parameters=(), precondition=f"(not ({done}))", effect=f"({done})",
                                   pose_generator=f"pbjson:{final}"))
@@ -118,6 +127,6 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
         continuous_types=("bpose", "gpose", "pdpose"),
         predicates=preds,
         skolems=tuple(skolems),
-        geometric=("Obstructs", "PDObstructs", "NoGrasp"),
+        geometric=("Obstructs", "PDObstructs", "NoGrasp", *(("BadGrasp",) if goal_poses else ())),
         actions=tuple(actions),
     )

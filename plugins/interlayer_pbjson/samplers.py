@@ -20,13 +20,18 @@ import numpy as np
 from interlayer.refine import Candidate
 from interlayer_clutter.samplers import ClutterSampler, fmt, in_corridors, putdown_motion
 from interlayer_manip.scene import REST_GAP, _radius
-from interlayer_manip.state import pose4, wrap
+from interlayer_manip.state import PRE_GRASP, pose4, trans, wrap
 
+from .domain import HELD_GRASP
 from .scene import draw_in, inside, polygon_of
 
 
 class PBSampler(ClutterSampler):
     """Clutter's sampler (its pick and its per-epoch state) with placements on named surfaces."""
+
+    def __init__(self, seed):
+        super().__init__(seed)
+        self.wanted: dict = {}  # object -> grasps (tool_T_object) that fit at its goal pose, after a regrasp was learned
 
     def __call__(self, problem, step, world, rng):
         if step.action == "pick":
@@ -99,8 +104,53 @@ class PBSampler(ClutterSampler):
         x, y, z = (float(v) for v in C[:3, 3])
         variants = [pose4(x, y, z, yaw + k * period) for k in range(int(round(2 * math.pi / period)))]
         G = world.held[arm][1]  # the tool's heading at each variant is fixed: the base stands behind it
-        yield from self._putdowns(problem, world, obj, arm, step.args[2], step.args[3],
-                                  [(x, y, lambda h, P=P: P, _yaw(P @ np.linalg.inv(G))) for P in variants], rng, per_spot=8)
+        found = False
+        for cand in self._putdowns(problem, world, obj, arm, step.args[2], step.args[3],
+                                   [(x, y, lambda h, P=P: P, _yaw(P @ np.linalg.inv(G))) for P in variants], rng, per_spot=8):
+            found = True
+            yield cand
+        if not found:
+            fits = self.regrasps(problem, world, obj, arm, variants)
+            if fits:  # refined as a failure of its own kind: the task planner learns (BadGrasp obj goal)
+                self.wanted[obj] = fits
+                kinds = sorted({_kind(np.linalg.inv(F)) for F in fits})
+                yield Candidate((), {HELD_GRASP: f"holding {obj} as it does, the hand hits a fixed obstacle at {obj}'s goal "
+                                                 f"pose; another {' or '.join(kinds)} grasp is clear there"}, "regrasp")
+
+    def regrasps(self, problem, world, obj, arm, variants) -> list:
+        """Grasps (tool_T_object) of ``obj`` other than the held one whose hand, opened as
+        they need, is clear of fixed obstacles at one of the goal pose's ``variants`` and where it
+        retreats from; empty unless the held grasp's hand hits a fixed obstacle at every variant (then
+        only a regrasp can put ``obj`` there, and nothing changes for a put-down that fails otherwise)."""
+        from interlayer_manip.generators import _problem_grasps, grasp_poses
+
+        geometry = problem.geometry
+        G = world.held[arm][1]
+        w = replace(world, held={a: h for a, h in world.held.items() if a != arm})
+
+        def clear(T, grasp):
+            hand = w.with_gripper(arm, geometry.opening(obj, grasp))
+            back = trans(0, 0, PRE_GRASP) @ T if _kind(T) == "top" else T @ trans(-PRE_GRASP, 0, 0)
+            return geometry.hand_free(hand, arm, T, (obj,)) and geometry.hand_free(hand, arm, back, (obj,))
+
+        if any(clear(P @ np.linalg.inv(G), G) for P in variants):
+            return []  # the held grasp fits: the put-down failed for another reason
+        rng = np.random.default_rng(0)
+        out = []
+        for P in variants:
+            for heading in np.linspace(-math.pi, math.pi, 8, endpoint=False):
+                for _, T in grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng, n_side=1):
+                    F = np.linalg.inv(T) @ P
+                    if not any(_same_grasp(geometry, obj, F, H) for H in [G, *out]) and clear(T, F):
+                        out.append(F)
+        return out
+
+    def order_grasps(self, problem, obj, P, grasps):
+        """Once a put-down at obj's goal pose needed a regrasp (see ``regrasps``), the grasps that fit there
+        first (each base's search keeps the first that IK reaches)."""
+        fits = self.wanted.get(obj, ())
+        return sorted(grasps, key=lambda g: not any(_same_grasp(problem.geometry, obj, np.linalg.inv(g[1]) @ P, F)
+                                                    for F in fits))
 
     def _putdowns(self, problem, world, obj, arm, bp_ref, pd_ref, spots, rng, limit: int = 4, per_spot: int = 4):
         """Candidates (base, lowering, retreat) for the object poses ``spots`` offers: (x, y, pose(heading),
@@ -151,6 +201,21 @@ def go_to(problem, step, world, rng):
     x, y, yaw = problem.geometry.goals["base"]
     base = (x, y, wrap(yaw))  # the files write pi, outside the planner's [-pi, pi) yaw bounds
     yield Candidate((base,), {}, f"to the goal base pose {fmt(base)}")
+
+
+def _kind(T) -> str:
+    """The kind of a tool pose (or of object_T_tool): "top" when its x axis points down."""
+    return "top" if abs(T[2, 0]) > 0.7 else "side"
+
+
+def _same_grasp(geometry, obj, F, H) -> bool:
+    """Grasps F and H (tool_T_object) hold ``obj`` the same way: their approach axes and closing lines agree
+    in the object's frame (a cylinder's side grasps are all one, whatever their yaw)."""
+    A, B = np.linalg.inv(F)[:3, :3], np.linalg.inv(H)[:3, :3]
+    if geometry.specs[obj].shape == "cylinder" and _kind(np.linalg.inv(F)) == _kind(np.linalg.inv(H)) == "side":
+        return True
+    # the same approach axis, and the fingers closing along the same line (a top grasp may turn 90 degrees)
+    return float(A[:, 0] @ B[:, 0]) > math.cos(0.5) and abs(float(A[:, 1] @ B[:, 1])) > math.cos(0.5)
 
 
 def _spec_at(spec, P):

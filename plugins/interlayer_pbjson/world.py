@@ -16,12 +16,13 @@ from dataclasses import replace
 
 import numpy as np
 from interlayer.errors import UserError
-from interlayer.refine import StepOutcome
+from interlayer.refine import Failure, StepOutcome
 from interlayer_manip.scene import REST_GAP
 from interlayer_manip.validate import upright
 from interlayer_manip.state import PADDING, _failure, _holding, pose4, wrap
 from interlayer_manip.world import ManipulationGeometry
 
+from .domain import HELD_GRASP
 from .scene import ON_TOL, inside, tops
 
 HOME_TOL = 1e-3  # m / rad: the robot is back at its start configuration
@@ -174,6 +175,8 @@ class PBGeometry(ManipulationGeometry):
         return None
 
     def refine_step(self, step, world, candidate, motion) -> StepOutcome:
+        if HELD_GRASP in candidate.values:  # the put-down generator's verdict: only another grasp fits the goal pose
+            return StepOutcome(False, failure=Failure(HELD_GRASP, (), candidate.values[HELD_GRASP]))
         acc = [0.0]
         try:
             drives = step.action in ("go_home", "go_to") or (
