@@ -1,5 +1,6 @@
 """A mobile robot with one arm on one side of its base (the TIAGo Pro, issue 21): the base poses offered come
-from where its arm reaches (reachmap.py), from the directions a cubby's mouth leaves open."""
+from where its arm reaches (reachmap.py), from the directions a cubby's mouth leaves open, and the drawer
+scene's outer object fits its gripper."""
 import math
 from pathlib import Path
 
@@ -54,8 +55,20 @@ def test_a_cubby_leaves_open_only_the_directions_facing_its_mouth():
     assert len(free) > 2 * len(into)
 
 
+def test_the_drawer_scenes_outer_object_fits_the_robots_gripper():
+    from interlayer_manip.state import OPEN_CLEARANCE
+
+    for robot, width in (("pr2", 0.08), ("tiago", None)):
+        problem = api.prepare(str(DRAWER), ["problem.variant=N", f"problem.robot={robot}"]).problem
+        g = problem.geometry
+        outer = g.specs["outer"]
+        assert 2 * outer.size[0] + OPEN_CLEARANCE <= g.robot.max_gripper_opening + 1e-9
+        if width is not None:  # the PR2's scene is as it was
+            assert 2 * outer.size[0] == pytest.approx(width)
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("config, overrides", [(CUBBY, [])], ids=["cubby"])
+@pytest.mark.parametrize("config, overrides", [(CUBBY, []), (DRAWER, ["problem.variant=N"])], ids=["cubby", "drawer-N"])
 def test_the_tiago_solves_and_validates(tmp_path, config, overrides):
     result = api.solve(str(config), ["problem.robot=tiago", "planner.seed=0", "planner.time_limit=120", *overrides])
     assert result.status == "solved", result.reason
