@@ -83,3 +83,15 @@ def test_bases_come_from_the_annulus_when_no_cell_reaches_that_height():
     rng = np.random.default_rng(0)
     bases = [around(g, "right", rng, 0.0, 0.0, 5.0) for _ in range(20)]  # 5 m up: out of any reach
     assert all(0.45 - 1e-9 <= math.hypot(x, y) <= 0.80 + 1e-9 for x, y, _ in bases)
+
+
+def test_detailed_collision_meshes_are_checked_as_their_convex_hulls():
+    import coal
+    from interlayer_pinocchio.meshes import MAX_TRIANGLES
+
+    tiago = _cubby("tiago").geometry.robot
+    meshes = [go.geometry for go in tiago.collision_model.geometryObjects if isinstance(go.geometry, coal.BVHModelBase)]
+    assert all(m.num_tris <= MAX_TRIANGLES for m in meshes)  # its fingertips had 10,772 triangles each
+    assert sum(isinstance(go.geometry, coal.ConvexBase) for go in tiago.collision_model.geometryObjects) >= 20
+    pr2 = _cubby("pr2").geometry.robot  # small meshes stay as they are
+    assert not any(isinstance(go.geometry, coal.ConvexBase) for go in pr2.collision_model.geometryObjects)
