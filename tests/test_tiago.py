@@ -82,7 +82,22 @@ def test_bases_come_from_the_annulus_when_no_cell_reaches_that_height():
     g = _cubby("pr2").geometry
     rng = np.random.default_rng(0)
     bases = [around(g, "right", rng, 0.0, 0.0, 5.0) for _ in range(20)]  # 5 m up: out of any reach
+    bases += [around(g, "right", rng, 0.0, 0.0, 0.8, level=False) for _ in range(20)]  # a top grasp: not measured
     assert all(0.45 - 1e-9 <= math.hypot(x, y) <= 0.80 + 1e-9 for x, y, _ in bases)
+
+
+def test_a_domains_own_grasps_get_bases_from_the_annulus():
+    # Drawer's top grasps into the open drawer: the reach map (level grasps) put the TIAGo 0.8 to 1.1 m away
+    from interlayer_drawer.generators import move_base
+
+    problem = api.prepare(str(DRAWER), ["problem.variant=O", "problem.robot=tiago", "planner.seed=1"]).problem
+    g = problem.geometry
+    world = g.with_joints(g.initial_world(), "cabinet", [0.35])
+    arm = g.robot.arms[0]
+    found = list(move_base(problem, GroundStep("move_base", (f"bpfg_inner_{arm}",)), world, np.random.default_rng(1)))
+    P = world.objects["inner"]
+    assert found and all(math.hypot(c.waypoints[0][0] - P[0, 3], c.waypoints[0][1] - P[1, 3]) <= 0.80 + 1e-9
+                         for c in found)
 
 
 def test_detailed_collision_meshes_are_checked_as_their_convex_hulls():

@@ -280,10 +280,11 @@ def _base_free(geometry, world, base, tuck=None) -> bool:
     return not geometry.in_collision(w, movables=False)
 
 
-def _free_bases(geometry, world, arm, P, rng, tries, bearings=()):
+def _free_bases(geometry, world, arm, P, rng, tries, bearings=(), level=True):
     """The current base, then up to ``tries`` collision-free bases from which ``arm`` reaches the
-    object at pose P (at most 20 samples each), coming from one of ``bearings`` (any when empty): an
-    object in a cubby leaves a narrow free sector, and IK, not this check, is what costs."""
+    object at pose P (at most 20 samples each; a ``level`` grasp's, see reachmap.around), coming from
+    one of ``bearings`` (any when empty): an object in a cubby leaves a narrow free sector, and IK, not
+    this check, is what costs."""
     yield tuple(world.base)
     if not geometry.robot.mobile:  # a fixed base: where it stands is the only base pose; more grasps are tried there
         if _base_free(geometry, world, world.base):
@@ -291,7 +292,7 @@ def _free_bases(geometry, world, arm, P, rng, tries, bearings=()):
         return
     free = 0
     for _ in range(20 * tries):
-        base = around(geometry, arm, rng, *P[:3, 3], bearings)
+        base = around(geometry, arm, rng, *P[:3, 3], bearings, level)
         if _base_free(geometry, world, base):
             yield base
             free += 1
@@ -311,10 +312,11 @@ def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=No
     # before it did, and bases that fail (a cubby leaves few) would fail again after every backtrack.
     rng = np.random.default_rng([int(rng.integers(2**32)), *stable_seed(world.base, sorted(world.held))])
     n = 0
-    # the directions a side grasp comes from (a domain's own grasps, top grasps, a fixed base: any)
+    # side grasps: from where the arm reaches them, from the directions a side grasp comes from (a domain's
+    # own grasps, top grasps: the annulus, any direction)
     side = "side" in kinds and not grasps and geometry.robot.mobile
     bearings = open_bearings(geometry, world, arm, obj, P) if side else ()
-    for i, base in enumerate(_free_bases(geometry, world, arm, P, rng, tries, bearings)):
+    for i, base in enumerate(_free_bases(geometry, world, arm, P, rng, tries, bearings, level=side)):
         if i == 0 and not _base_free(geometry, world, base):
             continue
         w = replace(world, base=base)
@@ -371,11 +373,12 @@ def _bases_for_putdown(problem, world, obj, arm, loc, ref, rng, limit, tries):
     if world.holder(obj) != arm:
         return
     G = world.held[arm][1]
+    top = abs((G[:3, :3].T @ np.array([1.0, 0, 0]))[2]) > 0.7  # tool x along the object's axis: a top grasp
     geometry.sync(world)
     n = 0
     for x, y, z in _spots(problem, world, obj, loc, rng, tries):
         for _ in range(4):
-            base = around(geometry, arm, rng, x, y, z) if geometry.robot.mobile else tuple(world.base)
+            base = around(geometry, arm, rng, x, y, z, level=not top) if geometry.robot.mobile else tuple(world.base)
             if not _base_free(geometry, world, base, tuck=arm):
                 continue
             P, T = _putdown(G, x, y, z, _bearing(base, x, y) + rng.uniform(-0.3, 0.3))

@@ -82,10 +82,11 @@ def annulus(rng, x, y, rmin=0.45, rmax=0.80):
     return (float(bx), float(by), float(_wrap(math.atan2(y - by, x - bx) + rng.uniform(-0.3, 0.3))))
 
 
-def around(geometry, arm, rng, x, y, z, bearings=()):
+def around(geometry, arm, rng, x, y, z, bearings=(), level=True):
     """A base pose from which ``arm`` reaches a level grasp at (x, y, z) and its pre-grasp (reach_cells)
-    coming from one of ``bearings``, or one of the annulus when no cell of the map reaches that height."""
-    cells = reach_cells(geometry.robot, arm, z)
+    coming from one of ``bearings``, or one of the annulus when no cell of the map reaches that height or
+    the grasp is not ``level`` (a top grasp, a domain's own grasps: the map does not measure them)."""
+    cells = reach_cells(geometry.robot, arm, z) if level else ()
     return base_near(rng, cells, x, y, bearings) if cells else annulus(rng, x, y)
 
 
