@@ -50,6 +50,7 @@ class Robot:
         from interlayer.errors import UserError
 
         from .description import check_names
+        from .meshes import hull_big_meshes
         from .selfcollision import skip_pairs
 
         desc = self.description = description
@@ -58,6 +59,7 @@ class Robot:
             str(desc.urdf), package_dirs=list(desc.package_dirs), root_joint=pin.JointModelPlanar(),
             geometry_types=[pin.GeometryType.COLLISION])
         check_names(desc, self.model, self.collision_model)
+        hull_big_meshes(self.collision_model)  # before the self-collision pairs are sampled against them
         self.base_height = float(desc.base_height if base_height is None else base_height)
         if self.base_height:  # the root link stands on a mount: the planar joint is placed that high
             self.model.jointPlacements[1] = pin.SE3(np.eye(3), np.array([0.0, 0.0, self.base_height]))

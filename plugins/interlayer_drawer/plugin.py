@@ -8,19 +8,24 @@ def make_problem(params, seed):
     from interlayer.domain import Problem
     from interlayer.errors import UserError
     from interlayer_manip.params import held_by_some_arm, robot_for
+    from interlayer_manip.state import OPEN_CLEARANCE
+    from interlayer_manip.world import load_robot
 
     from .domain import DOMAIN
-    from .scene import make_layout
+    from .scene import BASE_LIMITS, OUTER, make_layout
     from .world import DrawerGeometry
 
     variant = params["variant"]
     if variant not in ("O", "N"):
         raise UserError(f"problem.variant must be \"O\" (the outer object may stay) or \"N\" (it must be moved), "
                         f"got {variant!r}.")
-    robot_for(params, "pr2-drawer", mobile=True)  # the drawer's contents are reached from several sides
-    layout = make_layout(seed, variant)
-    layout.extra["robot"] = params.get("robot", "pr2")
-    geometry = DrawerGeometry(layout)
+    desc = robot_for(params, "pr2-drawer", mobile=True)  # the drawer's contents are reached from several sides
+    name = params.get("robot", "pr2")
+    robot = load_robot(desc, {"robot": name, "base_limits": BASE_LIMITS})
+    # the outer object must fit the gripper (opened OPEN_CLEARANCE wider), or (N) has no plan
+    layout = make_layout(seed, variant, outer_radius=min(OUTER[0], (robot.max_gripper_opening - OPEN_CLEARANCE) / 2))
+    layout.extra["robot"] = name
+    geometry = DrawerGeometry(layout, robot=robot)
     names = [o.name for o in layout.objects]
     objects = {o: "obj" for o in names}
     arms = geometry.robot.arms

@@ -29,6 +29,7 @@ HANDLE_Z = 0.64
 STAND = (0.16, 0.16, 0.45)  # the low stand in front of the drawer (top at z 0.45)
 INNER = (0.03, 0.12)  # radius, height
 OUTER = (0.04, 0.22)
+BASE_LIMITS = ((-1.0, 2.0), (-2.0, 2.0))
 TABLE_TOP = 0.72
 TABLE = ((0.35, -1.05), (0.5, 0.6))  # side table centre (x, y), size (x, y)
 MARGIN_O, MARGIN_N = 0.08, 0.05  # (O): the outer object this much beyond the first exposing pull, (N): short of it
@@ -74,8 +75,9 @@ def inner_interior():
     return (0.05 + r, 0.24), (-(WIDTH - 0.08) / 2 + 0.02 + r, (WIDTH - 0.08) / 2 - 0.02 - r)
 
 
-def make_layout(seed: int, variant: str) -> Layout:
-    """A seeded (O) or (N) scene; ``need`` / ``block`` (pull distances) go into ``layout.extra``."""
+def make_layout(seed: int, variant: str, outer_radius: float = OUTER[0]) -> Layout:
+    """A seeded (O) or (N) scene; ``need`` / ``block`` (pull distances) go into ``layout.extra``.
+    ``outer_radius``: narrower for a gripper that opens less than 9 cm (the outer object must be picked)."""
     from interlayer_pinocchio import ArticulatedBody
     from interlayer_manip.state import PADDING, pose4
 
@@ -84,7 +86,7 @@ def make_layout(seed: int, variant: str) -> Layout:
     body = ArticulatedBody("cabinet", cabinet_urdf(), cabinet_placement())
     rng = np.random.default_rng(seed)
     (x0, x1), (y0, y1) = inner_interior()
-    r_o = OUTER[0]
+    r_o = outer_radius
     z_inner = BOTTOM + INNER[1] / 2 + REST_GAP
     for _ in range(200):
         xi, yi = float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1))
@@ -106,8 +108,8 @@ def make_layout(seed: int, variant: str) -> Layout:
     (tx, ty), (tsx, tsy) = TABLE
     fixed.append(ObjectSpec("table", "box", (tsx, tsy, TABLE_TOP), (tx, ty, TABLE_TOP / 2, 0.0), movable=False))
     objects = [ObjectSpec("inner", "cylinder", INNER, (FRONT + xi, yi, z_inner, 0.0)),
-               ObjectSpec("outer", "cylinder", OUTER, (xo, yo, sz + OUTER[1] / 2 + REST_GAP, 0.0))]
+               ObjectSpec("outer", "cylinder", (r_o, OUTER[1]), (xo, yo, sz + OUTER[1] / 2 + REST_GAP, 0.0))]
     regions = {"table": (tx - tsx / 2, tx + tsx / 2, ty - tsy / 2, ty + tsy / 2)}
     return Layout(fixed, objects, regions, "inner", "hold", ("side",),
                   extra={"table_top": TABLE_TOP, "variant": variant, "supports": ("table", "stand"), "need": exact, "block": block,
-                         "grasps_of": {"inner": ("top",)}, "base_limits": ((-1.0, 2.0), (-2.0, 2.0))})
+                         "grasps_of": {"inner": ("top",)}, "base_limits": BASE_LIMITS})

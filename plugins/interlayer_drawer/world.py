@@ -24,10 +24,10 @@ HANDLE_GRIP = 0.03  # m between the finger pads around the 2 cm handle bar
 
 
 class DrawerGeometry(ManipulationGeometry):
-    def __init__(self, layout, padding: float = PADDING):
+    def __init__(self, layout, padding: float = PADDING, robot=None):
         from interlayer_pinocchio import ArticulatedBody
 
-        super().__init__(layout, padding=padding)
+        super().__init__(layout, padding=padding, robot=robot)
         body = ArticulatedBody(CABINET, cabinet_urdf(), cabinet_placement())
         self.add_body(body, body.zero(), riders=[("inner", DRAWER_LINK)], exact_links=(DRAWER_LINK, HANDLE_LINK))  # the drawer carries objects: no padding
 

@@ -1,10 +1,12 @@
-"""Pose generators (Sec. IV-B2) for the PR2: base poses in annuli, side / top grasps, put-down spots.
+"""Pose generators (Sec. IV-B2) for any robot: base poses within the arm's reach, side / top grasps, put-down spots.
 
 * ``pr2:move_base`` instantiates the base-pose reference it drives to. For ``bpfg_<o>_<arm>`` it
-  samples base poses in an annulus around o, oriented towards it, keeping those with a collision-free
-  (fixed obstacles) IK solution for some grasp. For ``bpfpd_<o>_<arm>_<loc>`` it samples a put-down
-  spot (tloc) in loc near the robot, then base poses in an annulus around it with an IK solution for
-  the put-down gripper pose derived from the held grasp; the tloc travels with the world to place.
+  samples base poses from which the arm reaches o (reachmap.py: measured per robot, arm and height;
+  from the directions where the hand alone fits), keeping those with a collision-free (fixed
+  obstacles) IK solution for some grasp. For ``bpfpd_<o>_<arm>_<loc>`` it samples a put-down
+  spot (tloc) in loc near the robot, then base poses from which the arm reaches it, with an IK
+  solution for the put-down gripper pose derived from the held grasp; the tloc travels with the world
+  to place.
 * ``pr2:pick`` yields grasps reachable from the current base: (pre-grasp, grasp, raise) arm vectors.
 * ``pr2:place`` yields (lowering, retreat) arm paths for the chosen tloc and a few variants.
 
@@ -19,6 +21,7 @@ import numpy as np
 
 from interlayer.refine import Candidate, Infeasible, stable_seed
 
+from .reachmap import around, open_bearings
 from .scene import REST_GAP, table_top
 from .state import LIFT, OPEN_CLEARANCE, PRE_GRASP, pose4, rz, trans, wrap
 
@@ -277,16 +280,11 @@ def _base_free(geometry, world, base, tuck=None) -> bool:
     return not geometry.in_collision(w, movables=False)
 
 
-def _annulus(rng, x, y, rmin=0.45, rmax=0.80):
-    r, a = rng.uniform(rmin, rmax), rng.uniform(-math.pi, math.pi)
-    bx, by = x + r * math.cos(a), y + r * math.sin(a)
-    return (float(bx), float(by), float(wrap(math.atan2(y - by, x - bx) + rng.uniform(-0.3, 0.3))))
-
-
-def _free_bases(geometry, world, x, y, rng, tries):
-    """The current base, then up to ``tries`` collision-free bases of the annulus around (x, y) (at
-    most 20 samples each): an object in a cubby leaves a narrow free sector, and IK, not this check,
-    is what costs."""
+def _free_bases(geometry, world, arm, P, rng, tries, bearings=(), level=True):
+    """The current base, then up to ``tries`` collision-free bases from which ``arm`` reaches the
+    object at pose P (at most 20 samples each; a ``level`` grasp's, see reachmap.around), coming from
+    one of ``bearings`` (any when empty): an object in a cubby leaves a narrow free sector, and IK, not
+    this check, is what costs."""
     yield tuple(world.base)
     if not geometry.robot.mobile:  # a fixed base: where it stands is the only base pose; more grasps are tried there
         if _base_free(geometry, world, world.base):
@@ -294,7 +292,7 @@ def _free_bases(geometry, world, x, y, rng, tries):
         return
     free = 0
     for _ in range(20 * tries):
-        base = _annulus(rng, x, y)
+        base = around(geometry, arm, rng, *P[:3, 3], bearings, level)
         if _base_free(geometry, world, base):
             yield base
             free += 1
@@ -314,7 +312,11 @@ def _bases_for_grasp(problem, world, obj, arm, ref, rng, limit, tries, grasps=No
     # before it did, and bases that fail (a cubby leaves few) would fail again after every backtrack.
     rng = np.random.default_rng([int(rng.integers(2**32)), *stable_seed(world.base, sorted(world.held))])
     n = 0
-    for i, base in enumerate(_free_bases(geometry, world, x, y, rng, tries)):
+    # side grasps: from where the arm reaches them, from the directions a side grasp comes from (a domain's
+    # own grasps, top grasps: the annulus, any direction)
+    side = "side" in kinds and not grasps and geometry.robot.mobile
+    bearings = open_bearings(geometry, world, arm, obj, P) if side else ()
+    for i, base in enumerate(_free_bases(geometry, world, arm, P, rng, tries, bearings, level=side)):
         if i == 0 and not _base_free(geometry, world, base):
             continue
         w = replace(world, base=base)
@@ -371,11 +373,12 @@ def _bases_for_putdown(problem, world, obj, arm, loc, ref, rng, limit, tries):
     if world.holder(obj) != arm:
         return
     G = world.held[arm][1]
+    top = abs((G[:3, :3].T @ np.array([1.0, 0, 0]))[2]) > 0.7  # tool x along the object's axis: a top grasp
     geometry.sync(world)
     n = 0
     for x, y, z in _spots(problem, world, obj, loc, rng, tries):
         for _ in range(4):
-            base = _annulus(rng, x, y) if geometry.robot.mobile else tuple(world.base)
+            base = around(geometry, arm, rng, x, y, z, level=not top) if geometry.robot.mobile else tuple(world.base)
             if not _base_free(geometry, world, base, tuck=arm):
                 continue
             P, T = _putdown(G, x, y, z, _bearing(base, x, y) + rng.uniform(-0.3, 0.3))
