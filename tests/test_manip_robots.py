@@ -92,3 +92,45 @@ def test_a_fixed_base_robots_base_pose_generators_offer_only_where_it_stands():
     world = problem.geometry.initial_world()
     found = list(move_base(problem, GroundStep("move_base", ("bpfg_can_arm",)), world, np.random.default_rng(0), limit=20))
     assert found and {c.waypoints[0] for c in found} == {tuple(world.base)}
+
+
+def _clutter25(robot="panda", seed=0):
+    run = api.prepare(str(CLUTTER), [f"problem.robot={robot}", "problem.objects=25", f"planner.seed={seed}"])
+    problem = run.problem
+    return problem, problem.geometry.initial_world()
+
+
+def test_a_fixed_base_robot_puts_down_only_within_its_reach_band():
+    """The free spots of a crowded reach band lie mostly nearer than the band, where the arm reaches no
+    put-down: they are never offered."""
+    import math
+
+    import numpy as np
+
+    from interlayer_clutter.samplers import _table_spots
+
+    problem, world = _clutter25()
+    g, layout = problem.geometry, problem.geometry.layout
+    near, far = layout.extra["reach_near"], layout.extra["reach"]
+    spots = [s for level in _table_spots(g, world, layout.target, np.random.default_rng(0), 80) for s in level]
+    assert len(spots) >= 20
+    d = [math.hypot(x - layout.base[0], y - layout.base[1]) for x, y, _ in spots]
+    assert near - 1e-9 <= min(d) and max(d) <= far + 1e-9
+
+
+def test_a_fixed_base_robot_grasps_an_object_near_its_base_from_the_side():
+    """A fixed base cannot step round an object: near it, where a radial approach would put the pre-grasp
+    on the base, side grasps come from well off the bearing, and the search finds as many as it wants."""
+    import math
+
+    from interlayer_clutter.samplers import ClutterSampler
+
+    problem, world = _clutter25()
+    g, base = problem.geometry, problem.geometry.layout.base
+    dist = {o: math.hypot(P[0, 3] - base[0], P[1, 3] - base[1]) for o, P in world.objects.items()}
+    obj = min((o for o in dist if o != g.layout.target), key=dist.get)
+    assert dist[obj] < 0.45
+    found = ClutterSampler((0,)).grasp_candidates(problem, world, obj, "arm")
+    assert len(found) == 6  # the search's want for an object that is not the target
+    bearing = math.atan2(world.objects[obj][1, 3] - base[1], world.objects[obj][0, 3] - base[0])
+    assert max(abs(math.remainder(math.atan2(T[1, 0], T[0, 0]) - bearing, 2 * math.pi)) for _, _, T, _, _ in found) > 0.5

@@ -433,9 +433,11 @@ def _table_spots(geometry, world, obj, rng, tries):
     v0, v1 = max(-table[4] + m, cv.min() - PUT_REACH), min(table[4] - m, cv.max() + PUT_REACH)
     pts = np.column_stack(from_frame(table, rng.uniform(u0, u1, n), rng.uniform(v0, v1, n)))
     reach = geometry.layout.extra.get("reach")
-    if reach is not None:  # a fixed base (see clutter_layout): only where its arm reaches
+    if reach is not None:  # a fixed base (see clutter_layout): only where its arm reaches, near and far (the free
+        # spots of a crowded band are mostly nearer than it, where no put-down succeeds)
         bx, by = geometry.layout.base[:2]
-        pts = pts[np.hypot(pts[:, 0] - bx, pts[:, 1] - by) <= reach]
+        d = np.hypot(pts[:, 0] - bx, pts[:, 1] - by)
+        pts = pts[(d <= reach) & (d >= geometry.layout.extra.get("reach_near", 0.0))]
         n = len(pts)
     others = np.array([Q[:2, 3] for Q in world.objects.values()]).reshape(-1, 2)
     d = np.min(np.linalg.norm(pts[:, None, :] - others[None, :, :], axis=2), axis=1) if len(others) else np.full(n, 9.0)
