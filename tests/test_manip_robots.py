@@ -134,3 +134,30 @@ def test_a_fixed_base_robot_grasps_an_object_near_its_base_from_the_side():
     assert len(found) == 6  # the search's want for an object that is not the target
     bearing = math.atan2(world.objects[obj][1, 3] - base[1], world.objects[obj][0, 3] - base[0])
     assert max(abs(math.remainder(math.atan2(T[1, 0], T[0, 0]) - bearing, 2 * math.pi)) for _, _, T, _, _ in found) > 0.5
+
+
+def test_a_fixed_base_robot_puts_down_near_its_base_with_the_hand_turned():
+    """Near a fixed base a put-down facing the base's bearing backs the hand out onto the base: the tool's
+    heading spreads as its grasps' do, and most spots at the band's inner edge are reached."""
+    import math
+    from dataclasses import replace
+
+    import numpy as np
+
+    from interlayer_clutter.samplers import ClutterSampler, _table_spots, putdown_motion
+    from interlayer_manip.generators import _putdown
+
+    problem, world = _clutter25()
+    g, layout = problem.geometry, problem.geometry.layout
+    obj = layout.target
+    T = ClutterSampler((0,)).grasp_candidates(problem, world, obj, "arm")[0][2]
+    G = np.linalg.inv(T) @ world.objects[obj]
+    held = replace(world, objects={k: v for k, v in world.objects.items() if k != obj}, held={"arm": (obj, G)})
+    rng = np.random.default_rng(0)
+    base, near = layout.base, layout.extra["reach_near"]
+    spots = [s for level in _table_spots(g, held, obj, rng, 80) for s in level
+             if math.hypot(s[0] - base[0], s[1] - base[1]) < near + 0.1][:20]
+    assert len(spots) == 20
+    put = [putdown_motion(g, held, "arm", x, y, lambda h, x=x, y=y, z=z: _putdown(G, x, y, z, h)[0], rng)
+           for x, y, z in spots]
+    assert sum(p is not None for p in put) >= 10  # 12 of 20; facing the bearing (+-0.3 rad), 1

@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 from interlayer.refine import Candidate, EpochState
-from interlayer_manip.generators import _base_free
+from interlayer_manip.generators import FIXED_SPREAD, _base_free
 from interlayer_manip.scene import REST_GAP, base_limits, table_top
 from interlayer_manip.state import pose4, wrap
 
@@ -355,7 +355,8 @@ def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None):
     base = base_near(geometry, x, y, rng, heading=heading)
     if base is None or not _base_free(geometry, world, base, tuck=arm):
         return None
-    P = pose_at(math.atan2(y - base[1], x - base[0]) + rng.uniform(-0.3, 0.3))
+    spread = 0.3 if geometry.robot.mobile else FIXED_SPREAD  # a fixed base turns the hand, not itself (grasp_poses)
+    P = pose_at(math.atan2(y - base[1], x - base[0]) + rng.uniform(-spread, spread))
     if P is None:
         return None
     obj, G = world.held[arm]
