@@ -161,3 +161,18 @@ def test_a_fixed_base_robot_puts_down_near_its_base_with_the_hand_turned():
     put = [putdown_motion(g, held, "arm", x, y, lambda h, x=x, y=y, z=z: _putdown(G, x, y, z, h)[0], rng)
            for x, y, z in spots]
     assert sum(p is not None for p in put) >= 10  # 12 of 20; facing the bearing (+-0.3 rad), 1
+
+
+def test_a_fixed_base_robots_grasp_candidates_are_distinct():
+    """Where the base never moves, the straight-on grasp comes back at every turn of the search: it is tried
+    once, and the candidates offered (to be ranked by what is in their way) are different grasps."""
+    import numpy as np
+
+    from interlayer_clutter.samplers import ClutterSampler
+
+    problem, world = _clutter25(seed=1)
+    target = problem.geometry.layout.target
+    found = ClutterSampler((1,)).grasp_candidates(problem, world, target, "arm")
+    assert len(found) == 12  # the search's want for the target
+    assert len({tuple(np.round(T[:3, :4].ravel(), 4)) for _, _, T, _, _ in found}) == 12  # without the check: 1
+

@@ -206,7 +206,7 @@ class ClutterSampler(EpochState):
                      grippers={a: "closed" for a in arms})
         # the budget counts base poses clear of fixed obstacles, not draws: around an object in a corner most
         # draws hit the walls, and a search cut after a fixed number of draws found nothing in most epochs
-        free, draws = 0, 0
+        free, draws, tried = 0, 0, set()
         while free < n_bases + 2 * tries and draws < BASE_DRAWS * (n_bases + 2 * tries):
             if free >= n_bases and found:
                 break  # past the first bases, only search on while nothing at all was found
@@ -217,6 +217,9 @@ class ClutterSampler(EpochState):
             free += 1
             w = replace(w0, base=base)
             for kind, T in grasp_poses(geometry, obj, P, _bearing(base, x, y), kinds, rng, n_side=2):
+                if (base, _pose_key(T)) in tried:  # a fixed base draws its straight-on grasp at every turn
+                    continue
+                tried.add((base, _pose_key(T)))
                 wps = _waypoints(geometry, w, arm, T, kind, rng, obj, splits=LINE_SPLITS)
                 if wps is None:
                     continue
