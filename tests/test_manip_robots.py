@@ -176,3 +176,39 @@ def test_a_fixed_base_robots_grasp_candidates_are_distinct():
     assert len(found) == 12  # the search's want for the target
     assert len({tuple(np.round(T[:3, :4].ravel(), 4)) for _, _, T, _, _ in found}) == 12  # without the check: 1
 
+
+
+def test_a_fixed_base_robot_never_puts_an_object_down_rolled_over():
+    """IK for a fixed base tries the tool pose rolled half a turn about the approach axis when the pose itself
+    is out of reach: right for a grasp (the fingers swap sides), wrong for a put-down, which would roll the
+    object over with the hand (main's UR5 put a cylinder down upside down: Clutter-25 seed 0, invalid)."""
+    import math
+    from dataclasses import replace
+
+    import numpy as np
+
+    from interlayer_clutter.samplers import ClutterSampler
+    from interlayer_manip.generators import _putdown
+
+    run = api.prepare(str(CLUTTER), ["problem.robot=ur5_gripper", "problem.objects=15", "planner.seed=0"])
+    g, world = run.problem.geometry, run.problem.geometry.initial_world()
+    obj = g.layout.target
+    G = np.linalg.inv(ClutterSampler((0,)).grasp_candidates(run.problem, world, obj, "arm")[0][2]) @ world.objects[obj]
+    held = replace(world, objects={k: v for k, v in world.objects.items() if k != obj}, held={"arm": (obj, G)})
+    base, z, rng = g.layout.base, world.objects[obj][2, 3], np.random.default_rng(0)
+
+    def tool_turn(w, T):  # the tool's rotation away from T (rad) at IK's answer, or None
+        v = g.ik(w, "arm", T, np.random.default_rng(0), attempts=4)
+        R = g.robot.tool_pose(g.sync(w.with_arm("arm", v)), "arm")[:3, :3] if v is not None else None
+        return None if R is None else math.acos(np.clip((np.trace(R.T @ T[:3, :3]) - 1) / 2, -1, 1))
+
+    rolled = 0
+    for _ in range(60):  # put-down poses around the base; some are reached only rolled over (empty-handed)
+        r, a = rng.uniform(0.35, 0.8), rng.uniform(-1.2, 1.2)
+        _, T = _putdown(G, base[0] + r * math.cos(a), base[1] + r * math.sin(a), z, a + rng.uniform(-1.2, 1.2))
+        empty = tool_turn(replace(held, held={}), T)
+        if empty is not None and empty > 3:
+            rolled += 1
+            turn = tool_turn(held, T)
+            assert turn is None or turn < math.radians(2)  # holding the object, never
+    assert rolled >= 1
