@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 from interlayer.refine import Candidate, EpochState
-from interlayer_manip.generators import _base_free
+from interlayer_manip.generators import FIXED_SPREAD, _base_free
 from interlayer_manip.scene import REST_GAP, base_limits, table_top
 from interlayer_manip.state import pose4, wrap
 
@@ -206,7 +206,7 @@ class ClutterSampler(EpochState):
                      grippers={a: "closed" for a in arms})
         # the budget counts base poses clear of fixed obstacles, not draws: around an object in a corner most
         # draws hit the walls, and a search cut after a fixed number of draws found nothing in most epochs
-        free, draws = 0, 0
+        free, draws, tried = 0, 0, set()
         while free < n_bases + 2 * tries and draws < BASE_DRAWS * (n_bases + 2 * tries):
             if free >= n_bases and found:
                 break  # past the first bases, only search on while nothing at all was found
@@ -218,6 +218,9 @@ class ClutterSampler(EpochState):
             w = replace(w0, base=base)
             for kind, T in self.order_grasps(problem, obj, P, grasp_poses(geometry, obj, P, _bearing(base, x, y), kinds, rng,
                                                                           n_side=2)):
+                if (base, _pose_key(T)) in tried:  # a fixed base draws its straight-on grasp at every turn
+                    continue
+                tried.add((base, _pose_key(T)))
                 wps = _waypoints(geometry, w, arm, T, kind, rng, obj, splits=LINE_SPLITS)
                 if wps is None:
                     continue
@@ -361,7 +364,8 @@ def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None):
     base = base_near(geometry, x, y, rng, heading=heading)
     if base is None or not _base_free(geometry, world, base, tuck=arm):
         return None
-    P = pose_at(math.atan2(y - base[1], x - base[0]) + rng.uniform(-0.3, 0.3))
+    spread = 0.3 if geometry.robot.mobile else FIXED_SPREAD  # a fixed base turns the hand, not itself (grasp_poses)
+    P = pose_at(math.atan2(y - base[1], x - base[0]) + rng.uniform(-spread, spread))
     if P is None:
         return None
     obj, G = world.held[arm]
@@ -439,9 +443,11 @@ def _table_spots(geometry, world, obj, rng, tries):
     v0, v1 = max(-table[4] + m, cv.min() - PUT_REACH), min(table[4] - m, cv.max() + PUT_REACH)
     pts = np.column_stack(from_frame(table, rng.uniform(u0, u1, n), rng.uniform(v0, v1, n)))
     reach = geometry.layout.extra.get("reach")
-    if reach is not None:  # a fixed base (see clutter_layout): only where its arm reaches
+    if reach is not None:  # a fixed base (see clutter_layout): only where its arm reaches, near and far (the free
+        # spots of a crowded band are mostly nearer than it, where no put-down succeeds)
         bx, by = geometry.layout.base[:2]
-        pts = pts[np.hypot(pts[:, 0] - bx, pts[:, 1] - by) <= reach]
+        d = np.hypot(pts[:, 0] - bx, pts[:, 1] - by)
+        pts = pts[(d <= reach) & (d >= geometry.layout.extra.get("reach_near", 0.0))]
         n = len(pts)
     others = np.array([Q[:2, 3] for Q in world.objects.values()]).reshape(-1, 2)
     d = np.min(np.linalg.norm(pts[:, None, :] - others[None, :, :], axis=2), axis=1) if len(others) else np.full(n, 9.0)

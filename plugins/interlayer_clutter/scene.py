@@ -58,7 +58,7 @@ def clutter_layout(seed: int, n: int, approach: str = "free", reach=None, radius
     layout = Layout(fixed, objects, regions, target, "hold", ("side",),
                     extra={"table_top": top, "base_limits": limits, "torso_height": TORSO, "approach": approach})
     if reach is not None:
-        layout.base, layout.extra["reach"] = base, reach[1]
+        layout.base, layout.extra["reach"], layout.extra["reach_near"] = base, reach[1], reach[0]
     return layout
 
 

@@ -27,9 +27,10 @@ class Reach:
             q = self.sync(w)
             found = solve_ik(self.robot, arm, target, q, rng=rng, world=self.cw, attempts=attempts,
                              ignore=tuple(ignore), movables=movables)
-            if found is None and not self.robot.mobile:
+            if found is None and not self.robot.mobile and not world.held.get(arm):
                 # a fixed base cannot step round to reach it: the same pose with the fingers swapped (rolled
-                # half a turn about the approach axis) may be within the wrist's range
+                # half a turn about the approach axis) may be within the wrist's range; not with an object in
+                # the hand, which would roll with it (a cylinder put down upside down)
                 found = solve_ik(self.robot, arm, target @ MIRRORED, q, rng=rng, world=self.cw, attempts=attempts,
                                  ignore=tuple(ignore), movables=movables)
             return found
