@@ -65,9 +65,9 @@ def test_the_wheel_carries_the_tour(tmp_path):
 
 
 def _version():
-    from interlayer.config import load_toml
+    from interlayer import __version__
 
-    return load_toml(ROOT / "pyproject.toml")["project"]["version"]
+    return __version__
 
 
 def test_an_installed_copy_records_no_commit_of_a_repository_around_it(tmp_path):
