@@ -33,6 +33,28 @@ def test_shipped_names_resolve_to_the_examples_and_suites(tmp_path, monkeypatch)
         api.resolve_config("elsewhere/gripper2d.toml")  # a path elsewhere is not a shipped name
 
 
+def test_a_plugin_distributions_examples_and_suites_are_found_in_its_package(tmp_path, monkeypatch):
+    """An installed plugin package's examples/ and benchmarks/ (package data) are shipped names, from any folder."""
+    import importlib
+
+    site = tmp_path / "site"
+    package = site / "il_shelf_data"
+    for kind, text in (("examples", "[problem]\ndomain = \"gripper2d\"\n"), ("benchmarks", "name = \"il-suite\"\n")):
+        (package / kind).mkdir(parents=True)
+        (package / kind / f"il_{kind}.toml").write_text(text)
+    (package / "__init__.py").write_text("")
+    (site / "il_shelf_data-0.1.dist-info").mkdir()
+    (site / "il_shelf_data-0.1.dist-info" / "METADATA").write_text("Metadata-Version: 2.1\nName: il-shelf-data\nVersion: 0.1\n")
+    (site / "il_shelf_data-0.1.dist-info" / "entry_points.txt").write_text("[interlayer.plugins]\nil_shelf_data = il_shelf_data\n")
+    monkeypatch.syspath_prepend(str(site))
+    importlib.invalidate_caches()
+    monkeypatch.chdir(tmp_path)
+    assert shipped.find("examples", "il_examples") == package / "examples" / "il_examples.toml"
+    assert "il_examples" in shipped.names("examples") and "gripper2d" in shipped.names("examples")
+    assert api.resolve_config("examples/il_examples.toml")["problem"]["domain"] == "gripper2d"
+    assert find_suite("il_benchmarks") == package / "benchmarks" / "il_benchmarks.toml"
+
+
 def _run(args, **kw):
     proc = subprocess.run(args, capture_output=True, text=True, **kw)
     assert proc.returncode == 0, f"{' '.join(map(str, args))} exited {proc.returncode}:\n{proc.stderr[-3000:]}"
