@@ -2,43 +2,33 @@
 
 Each distribution's wheel carries the examples and suites of its domains as package data
 (``interlayer_gripper2d/examples/gripper2d.toml``, ``interlayer_manip/benchmarks/table1.toml``: the
-force-include of its pyproject.toml), found in the packages of the installed plugins; in a source
+force-include of its pyproject.toml), found in the file lists of the installed plugin distributions; in a source
 checkout they are the repository's ``examples/`` and ``benchmarks/``, the only copy in git.
 """
 from __future__ import annotations
 
 import importlib.metadata
-import importlib.util
 from pathlib import Path
 
 KINDS = ("examples", "benchmarks")
 
 
-def _plugin_packages() -> list[str]:
-    """The top-level packages of the installed plugins (entry points), in discovery order, once each."""
-    from .plugins import ENTRY_POINT_GROUP
-
-    out = []
-    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
-        top = ep.value.partition(":")[0].split(".")[0].strip()
-        if top and top not in out:
-            out.append(top)
-    return out
-
-
 def folders(kind: str) -> list[Path]:
     """The folders of shipped ``kind`` files ("examples" or "benchmarks"): each installed plugin
-    package's ``kind/`` package data, then the source checkout's folder, if any."""
-    out = []
-    for top in _plugin_packages():
-        try:  # the package's folder, without importing it (a broken plugin is reported by discovery)
-            spec = importlib.util.find_spec(top)
-        except (ImportError, ValueError):
+    distribution's ``<package>/kind/`` package data (from its file list, so a distribution's domains may
+    keep their files in any of its packages), then the source checkout's folder, if any."""
+    from .plugins import ENTRY_POINT_GROUP
+
+    out, seen = [], set()
+    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        if ep.dist is None or ep.dist.name in seen:
             continue
-        for where in (spec.submodule_search_locations or []) if spec else []:
-            path = Path(where) / kind
-            if path.is_dir() and path not in out:
-                out.append(path)
+        seen.add(ep.dist.name)
+        for file in ep.dist.files or ():
+            if len(file.parts) == 3 and file.parts[1] == kind and file.suffix == ".toml":
+                where = Path(str(ep.dist.locate_file(file))).parent
+                if where.is_dir() and where not in out:
+                    out.append(where)
     checkout = Path(__file__).resolve().parents[2] / kind  # core/interlayer/ -> the repository
     if checkout.is_dir() and checkout not in out:
         out.append(checkout)
