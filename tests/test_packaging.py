@@ -142,3 +142,16 @@ def test_a_plugin_made_for_another_core_is_skipped_with_one_line(tmp_path, monke
         import sys
 
         sys.modules.pop(name, None)
+
+
+def test_the_up_adapters_ranges_are_the_ones_it_checks():
+    """interlayer-up's requirements name the versions its compatibility check supports (interlayer_up.compat)."""
+    from packaging.requirements import Requirement
+
+    from interlayer_up.compat import SUPPORTED
+
+    project = _project(ROOT / "adapters" / "up")["project"]
+    declared = {Requirement(r).name: str(Requirement(r).specifier)
+                for r in [*project["dependencies"], *project["optional-dependencies"]["symk"]]}
+    for dist, specifier in SUPPORTED.items():
+        assert declared[dist] == str(Requirement(f"{dist}{specifier}").specifier), dist

@@ -7,6 +7,7 @@ import importlib.util
 import inspect
 import logging
 import multiprocessing
+import os
 import subprocess
 import sys
 import tempfile
@@ -16,6 +17,8 @@ import types
 from dataclasses import dataclass, field
 
 from interlayer.planning import TaskPlanner
+
+from . import compat
 
 # FF's algorithm in Fast Downward: enforced hill-climbing with the FF heuristic and helpful actions,
 # then, when EHC fails (it is incomplete), greedy best-first search, as FF does. Fast Downward's
@@ -30,11 +33,11 @@ log = logging.getLogger("interlayer")
 # Engines that ignore UP's timeout: run them in a child process we can stop.
 UNBOUNDED_ENGINES = ("pyperplan", "pyperplan-opt")
 
-# Unified-Planning's import and our run_command hook are installed once per process, by one thread.
+# Unified-Planning is imported once per process, by one thread.
 _setup_lock = threading.Lock()
 # UP's expressions live in one process-wide environment whose expression manager is not safe for
 # threads (up-fast-downward's optimal engine builds in the global one whatever the problem's), so UP's
-# work runs under this lock, released while an engine's own process runs (_run_command_in_folder).
+# work runs under this lock, released while an engine's own process runs (_run_command).
 _UP_LOCK = threading.Lock()
 
 
@@ -52,12 +55,13 @@ def _import_up():
     """Import Unified-Planning and its engines without ConfigSpace and networkx: UP 1.3 imports ConfigSpace
     (and with it scipy.stats, most of UP's import time) only to describe engines' tuning parameters, which
     we never ask for, and networkx (a third of the rest) for plan graphs we never build. While UP loads,
-    stand-in modules answer; each imports the real one on first use."""
-    if "unified_planning.shortcuts" in sys.modules:
-        return
-    with _setup_lock:
-        if "unified_planning.shortcuts" not in sys.modules:
-            _import_up_without_configspace()
+    stand-in modules answer; each imports the real one on first use. Then the parts of UP the adapter
+    relies on beyond its shortcuts are checked (compat.py)."""
+    if "unified_planning.shortcuts" not in sys.modules:
+        with _setup_lock:
+            if "unified_planning.shortcuts" not in sys.modules:
+                _import_up_without_configspace()
+    compat.check()
 
 
 # module -> the classes UP's modules name while they load (bound by name, or in annotations)
@@ -66,20 +70,35 @@ _STAND_INS = {"ConfigSpace": ("ConfigurationSpace",), "networkx": ("DiGraph",)}
 
 def _import_up_without_configspace():
     stubs = {name: _stand_in(name, classes) for name, classes in _STAND_INS.items() if name not in sys.modules}
+    before = set(sys.modules)
     sys.modules.update(stubs)
+    failed = None
     try:
-        import unified_planning.engines.factory as factory
-        import unified_planning.shortcuts  # noqa: F401
-        from unified_planning.environment import get_environment
-
-        factory.inspect = _ShallowInspect("inspect")
-        get_environment()  # its engine factory imports every installed engine (up_pyperplan too)
+        _load_up(shallow=True)
+    except Exception as exc:  # a UP that needs more of them than the stand-ins answer: forget what it loaded
+        failed = f"{type(exc).__name__}: {exc}"
+        for name in set(sys.modules) - before:
+            del sys.modules[name]
     finally:
         for name, stub in stubs.items():
             if sys.modules.get(name) is stub:
                 del sys.modules[name]
         if "networkx" in stubs:  # only annotations kept the stand-in class: later uses get the real one
             del stubs["networkx"].DiGraph
+    if failed is not None:
+        log.warning("Unified-Planning did not load beside the UP adapter's stand-ins for ConfigSpace and networkx "
+                    "(%s); it loads with the real ones instead, a slower start.", failed)
+        _load_up(shallow=False)
+
+
+def _load_up(shallow: bool):
+    import unified_planning.engines.factory as factory
+    import unified_planning.shortcuts  # noqa: F401
+    from unified_planning.environment import get_environment
+
+    if shallow and getattr(factory, "inspect", None) is inspect:  # else UP no longer looks: nothing to save
+        factory.inspect = _ShallowInspect("inspect")
+    get_environment()  # its engine factory imports every installed engine (up_pyperplan too)
 
 
 class _ShallowInspect(types.ModuleType):
@@ -117,6 +136,59 @@ def _stand_in(name: str, classes) -> types.ModuleType:
     return stub
 
 
+@functools.cache
+def _in_folder_class():
+    """The adapter's part of each PDDL engine class it makes (``_engine``)."""
+    from unified_planning.engines.pddl_planner import PDDLPlanner
+    from unified_planning.engines.results import LogLevel, LogMessage, PlanGenerationResult
+    from unified_planning.engines.results import PlanGenerationResultStatus as S
+    from unified_planning.io import PDDLWriter
+
+    class InFolder(PDDLPlanner):
+        """UP's PDDLPlanner._solve for one-shot planning, except that the engine's files are written in
+        a folder of its own and its command runs there, by its warm driver if it has one (UP runs every
+        command in this process's working directory, where Fast Downward writes output.sas: concurrent
+        calls would read each other's tasks). It comes after the engine's class, before PDDLPlanner:
+        an engine's own ``_solve`` (Fast Downward's optimal one adds a goal action) calls this one."""
+
+        warm_driver = None  # a warm.WarmDriver for this engine's command, set by _engine
+        reached = False  # this _solve ran (an engine's own _solve may no longer call it: _solve_locked)
+
+        def _solve(self, problem, heuristic=None, timeout=None, output_stream=None):
+            if output_stream is not None:  # never from the adapter: UP's own way, which streams it
+                return super()._solve(problem, heuristic, timeout, output_stream)
+            self.reached = True
+            writer = PDDLWriter(problem, self._needs_requirements, self._rewrite_bool_assignments)
+            with tempfile.TemporaryDirectory(prefix="interlayer-fd-") as folder:
+                domain, task, plan_file = (os.path.join(folder, f) for f in ("domain.pddl", "problem.pddl", "plan.txt"))
+                writer.write_domain(domain)
+                writer.write_problem(task)
+                cmd = self._get_cmd(domain, task, plan_file)
+                timed_out, (out, err), retval = _run_command(cmd, folder, timeout, self.warm_driver)
+                logs = [LogMessage(LogLevel.INFO, "".join(out)), LogMessage(LogLevel.ERROR, "".join(err))]
+                plan = self._plan_from_file(problem, plan_file, writer.get_item_named) if os.path.isfile(plan_file) else None
+            # (no temporal correction, as UP's has: the adapter's problems have instantaneous actions only)
+            status = S.TIMEOUT if timed_out and retval != 0 else self._result_status(problem, plan, retval, logs)
+            return PlanGenerationResult(status, plan, engine_name=self.name, log_messages=logs)
+
+        def _plan_from_str(self, problem, plan_str, get_item_named):
+            """One plan reader per environment (UP builds a PDDLReader, a pyparsing grammar, 20-40 ms,
+            per plan it reads; reading a plan uses only regular expressions, not the grammar)."""
+            return _plan_reader(problem.environment).parse_plan_string(problem, plan_str, get_item_named)
+
+    return InFolder
+
+
+@functools.cache
+def _engine_class(cls):
+    """``cls`` with the adapter's part (``InFolder``) mixed in, if it is a PDDL engine."""
+    from unified_planning.engines.pddl_planner import PDDLPlanner
+
+    if not issubclass(cls, PDDLPlanner):
+        return cls
+    return type(cls.__name__, (cls, _in_folder_class()), {"__module__": cls.__module__, "__doc__": cls.__doc__})
+
+
 @dataclass
 class UPTaskPlanner(TaskPlanner):
     engine: str = "fast-downward"
@@ -145,15 +217,13 @@ class UPTaskPlanner(TaskPlanner):
 
     def _prepare(self, model):
         env = _quiet_environment()
-        from unified_planning.engines.pddl_planner import PDDLPlanner
-
         self._builder(model).problem_for(model.init)
         if self.engine not in UNBOUNDED_ENGINES:
-            with _engine(self.engine, self.params) as engine:  # made now, before the run's clock:
-                if isinstance(engine, PDDLPlanner):
-                    _plan_reader(env)  # its plan reader (a pyparsing grammar, 30-100 ms)
-                if self.warm:
-                    _warm_driver(engine)  # and its warm process
+            # made now, before the run's clock: the engine, its warm process, its plan reader (a
+            # pyparsing grammar, 30-100 ms)
+            with _engine(self.engine, self.params, warm=self.warm) as engine:
+                if isinstance(engine, _in_folder_class()):
+                    _plan_reader(env)
 
     def _plan(self, model, state, timeout):
         with _UP_LOCK:
@@ -221,22 +291,17 @@ def _dump_pddl(problem, folder, call: int, name_of: dict) -> None:
     (folder / "objects.txt").write_text("".join(f"{o} {name}\n" for o, name in name_of.items()))
 
 
-def _engine(name: str, params=None, checks: bool = False):
-    """UP's engine ``name``, made as its factory would but without the factory's credits notice, which
-    walks the whole call stack with source lines (20-50 ms for every engine made)."""
-    from unified_planning.engines.pddl_planner import PDDLPlanner
-
-    engine = _quiet_environment().factory.engine(name)(**(params or {}))
+def _engine(name: str, params=None, checks: bool = False, warm: bool = False):
+    """UP's engine ``name`` (a PDDL engine runs in folders of its own, ``InFolder``), made as its factory
+    would but without the factory's credits notice, which walks the whole call stack with source lines
+    (20-50 ms for every engine made); with ``warm``, its command goes to a warm driver if it has one."""
+    engine = _engine_class(_quiet_environment().factory.engine(name))(**(params or {}))
     engine.error_on_failed_checks = checks  # the factory's setting: True only when it chose the engine
-    if isinstance(engine, PDDLPlanner):  # it builds a PDDLReader (a pyparsing grammar, 20-40 ms) per plan it reads
-        engine._plan_from_str = _read_plan
+    if isinstance(engine, _in_folder_class()):
+        compat.check_engine(engine)
+        if warm:
+            engine.warm_driver = _warm_driver(engine)
     return engine
-
-
-def _read_plan(problem, plan_str, get_item_named):
-    """What PDDLPlanner._plan_from_str does, with one reader per environment: reading a plan uses only
-    regular expressions, not the reader's grammar."""
-    return _plan_reader(problem.environment).parse_plan_string(problem, plan_str, get_item_named)
 
 
 @functools.cache
@@ -346,7 +411,7 @@ def _warm_driver(engine):
 
     if not type(engine).__module__.startswith("up_fast_downward."):
         return None
-    cmd = engine._base_cmd("plan.txt")
+    cmd = engine._get_cmd("domain.pddl", "problem.pddl", "plan.txt")
     if cmd[0] != sys.executable or not str(cmd[1]).endswith("fast-downward.py"):
         return None
     driver = warm.driver_for(str(cmd[1]))
@@ -360,61 +425,42 @@ def _warm_driver(engine):
     return driver
 
 
-def _run_command_hook():
-    """Unified-Planning runs a PDDL engine's command with ``pddl_planner.run_command(engine, cmd, ...)``,
-    in the process's working directory. For an engine that carries a folder of its own
-    (``engine.interlayer_cwd``) the command runs there instead, by the engine's warm driver
-    (``engine.warm_driver``) if it has one. Everything else (the files, the engine's own ``_solve``,
-    plan reading, exit codes) stays UP's."""
-    from unified_planning.engines import pddl_planner
-
-    if getattr(pddl_planner.run_command, "interlayer_hook", False):
-        return
-    with _setup_lock:
-        if not getattr(pddl_planner.run_command, "interlayer_hook", False):
-            pddl_planner.run_command = _run_command_in_folder(pddl_planner.run_command)
-
-
-def _run_command_in_folder(original):
+def _run_command(cmd, folder, timeout, driver):
+    """Run an engine's command in ``folder`` (by its warm ``driver``, if any), as UP's ``run_command``
+    answers: (timed out, (stdout, stderr), exit code). Its process is killed at ``timeout``."""
     from .warm import WorkerFailed
 
-    def run_command(engine, cmd, output_stream=None, timeout=None):
-        folder = getattr(engine, "interlayer_cwd", None)
-        if folder is None or output_stream is not None:
-            return original(engine, cmd, output_stream=output_stream, timeout=timeout)
-        _UP_LOCK.release()  # held by _solve, the engine's only caller with a folder; the process needs no UP
-        try:
-            driver = getattr(engine, "warm_driver", None)
-            if driver is not None:
-                start = time.perf_counter()
-                try:
-                    return driver.run(cmd, folder, timeout)
-                except WorkerFailed as exc:
-                    log.warning("%s; Fast Downward's own driver runs this call instead.", exc)
-                timeout = None if timeout is None else max(0.0, timeout - (time.perf_counter() - start))
-            return _run_in(folder, engine, cmd, timeout)
-        finally:
-            _UP_LOCK.acquire()
-
-    run_command.interlayer_hook = True
-    return run_command
-
-
-def _run_in(folder, engine, cmd, timeout):
-    """UP's ``run_command`` without an output stream, the process started in ``folder``."""
-    from unified_planning.engines.pddl_planner import terminate_process
-
-    engine._process = subprocess.Popen(cmd, cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                       start_new_session=True)
-    timed_out, out, err = False, [], []
+    _UP_LOCK.release()  # held by _solve, the engine's only caller: the process needs no UP
     try:
-        out, err = [[x.decode()] for x in engine._process.communicate(timeout=timeout)]
+        if driver is not None:
+            start = time.perf_counter()
+            try:
+                return driver.run(cmd, folder, timeout)
+            except WorkerFailed as exc:
+                log.warning("%s; Fast Downward's own driver runs this call instead.", exc)
+            timeout = None if timeout is None else max(0.0, timeout - (time.perf_counter() - start))
+        return _run_in(folder, cmd, timeout)
+    finally:
+        _UP_LOCK.acquire()
+
+
+def _run_in(folder, cmd, timeout):
+    """The command in ``folder``, in a session of its own; the whole session killed at ``timeout``."""
+    from .warm import kill_group
+
+    proc = subprocess.Popen(cmd, cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    timed_out = False
+    try:
+        out, err = proc.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
-        terminate_process(engine._process)
+        kill_group(proc.pid)
+        out, err = proc.communicate()
         timed_out = True
-    retval = engine._process.returncode
-    engine._process = None
-    return timed_out, (out, err), retval
+    except BaseException:  # Ctrl-C: the engine's process does not outlive us
+        kill_group(proc.pid)
+        proc.wait()
+        raise
+    return timed_out, ([out.decode(errors="replace")], [err.decode(errors="replace")]), proc.returncode
 
 
 def _solve(engine_name, params, problem, timeout, warm=False):
@@ -425,20 +471,15 @@ def _solve(engine_name, params, problem, timeout, warm=False):
 def _solve_locked(engine_name, params, problem, timeout, warm):
     from unified_planning.engines import PlanGenerationResultStatus as S
 
-    # Fast Downward's driver writes output.sas into its working directory: concurrent runs in one
-    # folder read each other's tasks. Each call's command runs in a private folder (not by changing
-    # this process's working directory: other threads use it).
-    with tempfile.TemporaryDirectory(prefix="interlayer-fd-") as scratch, _engine(engine_name, params) as engine:
-        _run_command_hook()
-        engine.interlayer_cwd = scratch
+    with _engine(engine_name, params, warm=warm) as engine:
         compiled, chain, kind = _compile_for(engine, problem)
         if not engine.supports(kind):
             return "error", None, f"the engine '{engine_name}' cannot handle this problem's features ({sorted(kind.features)})"
         if not chain:
             compiled.__class__ = _sparse_problem_class()  # our own clone: only the PDDL writer reads it
-        if warm:
-            engine.warm_driver = _warm_driver(engine)
         res = engine.solve(compiled, timeout=timeout)
+        if isinstance(engine, _in_folder_class()) and not engine.reached:
+            raise compat.bypassed(engine)
     if res.status in (S.SOLVED_SATISFICING, S.SOLVED_OPTIMALLY) and res.plan is not None:
         plan = res.plan
         for step in reversed(chain):

@@ -99,7 +99,7 @@ class WarmDriver:
                     code = self._answer(deadline)["exit"]
                 except TimeoutError:
                     timed_out = True
-                    _kill_group(child)
+                    kill_group(child)
                     code = self._answer(time.monotonic() + STOP_GRACE)["exit"]
             except BaseException as exc:  # Ctrl-C, or the worker gone: start afresh next time (the request
                 self.close()  # ends with the worker: at the end of its input, or when the worker dies)
@@ -143,7 +143,7 @@ class WarmDriver:
                 proc.stdin.close()  # it ends at the end of its input
                 proc.wait(timeout=STOP_GRACE)
             except (OSError, subprocess.TimeoutExpired):
-                _kill_group(proc.pid)
+                kill_group(proc.pid)
                 proc.wait()
         for stream in (proc.stdin, proc.stdout, proc.stderr):
             try:
@@ -152,7 +152,7 @@ class WarmDriver:
                 pass
 
 
-def _kill_group(pid: int) -> None:
+def kill_group(pid: int) -> None:
     try:
         os.killpg(pid, signal.SIGKILL)
     except (ProcessLookupError, PermissionError):
