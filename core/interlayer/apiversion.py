@@ -19,6 +19,11 @@ _REQUIREMENT = re.compile(r"^\s*([A-Za-z0-9][A-Za-z0-9._-]*)\s*(\[[^\]]*\])?\s*(
 _CLAUSE = re.compile(r"^(~=|==|!=|<=|>=|<|>)\s*([0-9]+(?:\.[0-9]+)*)(\.\*)?$")
 
 
+def normal_name(name: str) -> str:
+    """A distribution's name as pip compares it (``Interlayer_UP`` -> ``interlayer-up``)."""
+    return re.sub(r"[-_.]+", "-", name).lower()
+
+
 def _release(version: str) -> tuple[int, ...] | None:
     """The release numbers of a version (``0.2.0`` -> (0, 2, 0)); None if it does not start with them."""
     match = re.match(r"^\s*v?([0-9]+(?:\.[0-9]+)*)", version)
@@ -46,7 +51,7 @@ def core_specifier(requirements) -> str | None:
     that hold only with an extra are not the distribution's own."""
     for text in requirements or ():
         match = _REQUIREMENT.match(text)
-        if not match or re.sub(r"[-_.]+", "-", match.group(1)).lower() != "interlayer":
+        if not match or normal_name(match.group(1)) != "interlayer":
             continue
         if match.group(5) and "extra" in match.group(5):
             continue

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import importlib
 import importlib.metadata
-import re
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -124,7 +123,7 @@ class PluginHost:
                     meta = ep.dist.metadata
                     dists[id(ep.dist)] = (meta["Name"], meta["Version"])
                     refused[id(ep.dist)] = apiversion.mismatch(meta["Name"], meta["Version"], meta.get_all("Requires-Dist"))
-            eps = sorted(found, key=lambda ep: _normal(dists.get(id(ep.dist), ("?",))[0]) not in FIRST_PARTY)
+            eps = sorted(found, key=lambda ep: apiversion.normal_name(dists.get(id(ep.dist), ("?",))[0]) not in FIRST_PARTY)
             for ep in eps:
                 if self.pm.get_plugin(ep.name) is not None or ep.name in self.broken:
                     continue
@@ -218,10 +217,6 @@ class PluginHost:
         for impl in self.pm.hook.interlayer_on_event.get_hookimpls():
             with blame(impl.plugin_name, "event observer (interlayer_on_event)"):
                 impl.function(event=event)
-
-
-def _normal(name: str) -> str:
-    return re.sub(r"[-_.]+", "-", name).lower()
 
 
 def _validation_sentence(exc) -> str:
