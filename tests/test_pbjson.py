@@ -1,4 +1,4 @@
-"""The pybullet-planning JSON format (plugins/interlayer_pbjson): reading, every goal kind, clean / cook,
+"""The pybullet-planning JSON format (plugins/manip/interlayer_pbjson): reading, every goal kind, clean / cook,
 one-line errors. Scenes are built here; tests of the shared files skip when those are absent."""
 import copy
 import json
