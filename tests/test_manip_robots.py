@@ -37,7 +37,7 @@ def test_a_fixed_base_one_armed_robot_picks_and_places_in_the_cubby(tmp_path):
 
 def test_clutter15_on_a_fixed_base_robot_solves_and_validates(tmp_path):
     result = api.solve(str(CLUTTER), ["problem.robot=panda", "problem.objects=15", "planner.seed=0",
-                                      "planner.time_limit=90"])
+                                      "planner.time_limit=600"])
     traj = _solved_and_valid(result, tmp_path)
     layout = result.problem.geometry.layout
     base, far = layout.base, layout.extra["reach"]
