@@ -356,3 +356,22 @@ def test_motion_bound_bounds_how_far_any_body_moves(robot):
             assert worst <= bound
             if group != "base":  # not a vacuous bound (the base's counts every link stretched out)
                 assert worst > bound / np.sqrt(g.dof)
+
+
+def test_an_arm_checker_leaves_out_what_the_arm_cannot_reach_and_follows_it_when_moved(robot):
+    """An arm's checker keeps bodies beyond the arm's reach out of the broad phase (they cannot
+    collide with it), and takes one back in when set_pose brings it within reach: same answers."""
+    world = CollisionWorld(robot)
+    world.add_box("table", (0.6, 1.2, 0.7), translation(0.8, 0.0, 0.35))
+    world.add_box("far", (0.2, 0.2, 0.2), translation(4.0, 0.0, 0.8), movable=True)
+    q = robot.default_q()
+    g = robot.group("left_arm")
+    reach = [0.3, 0.0, 0.0, -0.2, 0.0, -0.2, 0.0]  # stretched out in front
+    is_valid = world.checker_for("left_arm", q)
+    assert is_valid(reach) and not world.in_collision(g.set(q, reach))
+    slot = next(s for s in world._slots if s.far is not None)  # the checker's
+    assert slot.off[world._gm.getGeometryId("far")] and not slot.off[world._gm.getGeometryId("table")]
+    world.set_pose("far", robot.tool_pose(g.set(q, reach), "left"))  # now where the hand is
+    assert world.in_collision(g.set(q, reach)) and not is_valid(reach)
+    world.set_pose("far", translation(4.0, 0.0, 0.8))
+    assert is_valid(reach)
