@@ -6,9 +6,9 @@ A query kind (``check`` or ``movables``, a group, the ignored objects, movables 
 the geometry model with a GeometryData and a naive broadphase manager, one variant's mask applied.
 The naive manager tests the bounding boxes of every two geometries it holds, so each slot takes out of
 it (``disableCollision`` on its own copy) the geometries that no active pair needs: those of no active
-pair at all, and, for an arm's checker, every body that does not move with the arm and lies beyond the
-arm's reach from where the checker holds the base (``_far``). Neither changes an answer: a pair whose
-geometry is left out cannot collide.
+pair at all, and, for an arm's checker, every resting object beyond the arm's reach from where the
+checker holds the base (``_far``). Neither changes an answer: a pair whose geometry is left out cannot
+collide.
 """
 
 from __future__ import annotations
@@ -105,8 +105,8 @@ class Pairs:
         return slot
 
     def _far(self, group: str, q, margin: float = 0.0):
-        """For an arm's checker at ``q`` (its other joints and the base held there): the geometries no
-        body moving with the arm can reach, as a boolean array (cached per world state); None for a
+        """For an arm's checker at ``q`` (the base held there): the resting objects no body moving with
+        the arm can reach, as a boolean array over the geometries (cached per world state); None for a
         group that can reach anywhere (the base) or has a joint other than revolute ones."""
         if self._needs_build:
             self._build()
@@ -114,31 +114,30 @@ class Pairs:
         if reach is None:
             return None
         root, radius = reach
-        model, data, g = self._model, self._data, self.robot.group(group)
-        fixed = np.array(q, dtype=float)
-        g.write(fixed, np.zeros(g.dof))  # what the checker does not move: the key
-        key = (group, tuple(fixed.tolist()), margin, self._version, self._poses)
+        pin.forwardKinematics(self._model, self._data, _as_q(q))
+        centre = self._data.oMi[root].translation  # a revolute joint's origin: every moving body stays within radius
+        key = (group, tuple(centre.tolist()), margin, self._version, self._poses)
         cached = self._far_cache.get(key)
         if cached is not None:
             return cached
-        pin.forwardKinematics(model, data, fixed)
-        centre = data.oMi[root].translation  # a revolute joint's origin: every moving body stays within radius
-        supports = model.supports
-        geoms, poses, static = [], [], []
-        for gid, go in enumerate(self._gm.geometryObjects):
-            if go.parentJoint == 0 or root not in supports[go.parentJoint]:
-                static.append(gid)
-                geoms.append(go.geometry)
-                poses.append(go.placement if go.parentJoint == 0 else data.oMi[go.parentJoint] * go.placement)
+        gids, lo, hi = self._resting_boxes()
+        gap = np.linalg.norm(np.maximum(np.maximum(lo - centre, centre - hi), 0.0), axis=1)
         far = np.zeros(self._gm.ngeoms, dtype=bool)
-        if static:
-            lo, hi = self._boxes(geoms, poses)
-            gap = np.linalg.norm(np.maximum(np.maximum(lo - centre, centre - hi), 0.0), axis=1)
-            far[np.asarray(static)[gap > radius + margin + _REACH_SLACK]] = True
+        far[gids[gap > radius + margin + _REACH_SLACK]] = True
         if len(self._far_cache) > 64:
             self._far_cache.clear()
         self._far_cache[key] = far
         return far
+
+    def _resting_boxes(self):
+        """(geometry ids, lower corners, upper corners) of the world boxes of the objects not held."""
+        key = (self._version, self._poses)
+        cached = self._bounds.get("resting")
+        if cached is None or cached[0] != key:
+            resting = [o for o in self._objects.values() if o.held_by is None]
+            lo, hi = self._boxes([o.geometry for o in resting], [o.pose for o in resting])
+            cached = self._bounds["resting"] = (key, (np.array([o.gid for o in resting], dtype=int), lo, hi))
+        return cached[1]
 
     def _reach(self, group: str):
         """(root joint, radius): the group's joints all hang below its first, revolute, joint ``root``, and

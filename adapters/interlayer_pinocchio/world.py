@@ -25,7 +25,7 @@ import pinocchio as pin
 
 from .distances import Distances, _as_q, _transform
 from .joints import as_se3
-from .pairs import Pairs
+from .pairs import Pairs, _Slot, _Variant
 from .robot import Robot
 
 __all__ = ["CollisionWorld", "WorldObject", "Attachment"]
