@@ -375,3 +375,24 @@ def test_an_arm_checker_leaves_out_what_the_arm_cannot_reach_and_follows_it_when
     assert world.in_collision(g.set(q, reach)) and not is_valid(reach)
     world.set_pose("far", translation(4.0, 0.0, 0.8))
     assert is_valid(reach)
+
+
+def test_the_broad_phase_meets_the_objects_before_the_robots_self_pairs(robot):
+    """A check stops at its first hit, and the manager tests geometries in the order they were
+    registered: the objects come first, so an arm in an object is found before the robot's self pairs
+    (the costliest meshes) are tested, also after the slot changes which geometries it leaves out."""
+    world = table_world(robot)
+    q = robot.default_q()
+    checks = [lambda: world.in_collision(q), lambda: world.checker_for("left_arm", q)([0.0] * 7),
+              lambda: world.in_collision(q, movables=False)]
+    # more query kinds than slots: a reused slot takes back the cylinder the last one ignored
+    checks += [lambda i=i: world.in_collision(q, ignore={f"cyl{i}"}) for i in range(12)]
+    for check in checks:
+        check()
+        slot = world._slots[0]
+        objs = slot.manager.getManager().getObjects()
+        registered = [objs[i].collisionGeometry() for i in range(len(objs))]
+        assert len(registered) == int((~slot.off).sum())
+        first_mesh = [isinstance(g, coal.BVHModelBase) for g in registered].index(True)  # the robot's links
+        assert any(isinstance(g, coal.Cylinder) for g in registered[:first_mesh])
+        assert not any(isinstance(g, coal.Cylinder) for g in registered[first_mesh:])  # no object after them
