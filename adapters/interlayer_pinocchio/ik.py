@@ -22,11 +22,17 @@ from .robot import Robot
 
 __all__ = ["solve_ik", "arm_ik", "ArmIK"]
 
-try:  # what np.linalg.solve calls for one right-hand side, without its wrappers (a third of an IK iteration)
+
+def _public_solve1(a, b, signature=None):
+    """np.linalg.solve for one right-hand side: the same floats as numpy's gufunc below, slower."""
+    return np.linalg.solve(a, b)
+
+
+try:  # what np.linalg.solve calls for one right-hand side, without its wrappers (a third of an IK iteration);
+    # a private numpy name, checked once here: a numpy without it gets the public function
     from numpy.linalg._umath_linalg import solve1 as _solve1
-except ImportError:  # another numpy's layout: the public function, same result
-    def _solve1(a, b, signature=None):
-        return np.linalg.solve(a, b)
+except ImportError:
+    _solve1 = _public_solve1
 
 
 class ArmIK:
