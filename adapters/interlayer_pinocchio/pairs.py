@@ -13,6 +13,8 @@ collide.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pinocchio as pin
 
@@ -171,11 +173,18 @@ class Pairs:
                 j = go.parentJoint
                 if j > 0 and root in supports[j]:
                     chain = list(supports[j])
-                    offsets = sum(np.linalg.norm(model.jointPlacements[k].translation)
-                                  for k in chain[chain.index(root) + 1:])
+                    offsets = 0.0
+                    for k in chain[chain.index(root) + 1:]:
+                        offsets += np.linalg.norm(model.jointPlacements[k].translation)
+                        kind = model.joints[k].shortname()
+                        if kind.startswith("JointModelP"):  # a prismatic joint below (fingers) slides this far
+                            i = model.joints[k].idx_q
+                            offsets += max(abs(model.lowerPositionLimit[i]), abs(model.upperPositionLimit[i]))
+                        elif not kind.startswith("JointModelR"):
+                            radius = math.inf  # a joint it cannot bound: leave nothing out
                     extent = np.linalg.norm(go.placement.act(go.geometry.aabb_center)) + go.geometry.aabb_radius
                     radius = max(radius, offsets + extent)
-            out = (root, float(radius))
+            out = (root, float(radius)) if math.isfinite(radius) else None
         self._bounds[("reach", group)] = (self._version, out)
         return out
 

@@ -396,3 +396,32 @@ def test_the_broad_phase_meets_the_objects_before_the_robots_self_pairs(robot):
         first_mesh = [isinstance(g, coal.BVHModelBase) for g in registered].index(True)  # the robot's links
         assert any(isinstance(g, coal.Cylinder) for g in registered[:first_mesh])
         assert not any(isinstance(g, coal.Cylinder) for g in registered[first_mesh:])  # no object after them
+
+
+@pytest.mark.parametrize("name", ["pr2", "panda"])
+def test_an_arms_reach_bounds_every_body_it_moves(name):
+    """What an arm's checker leaves out rests on _reach: no corner of a body moving with the arm (its
+    links, the fingers at any opening, a held object) gets further from the arm's first joint."""
+    robot = Robot.load(name)
+    world = CollisionWorld(robot)
+    arm = robot.arms[0]
+    q0 = robot.default_q()
+    world.add_box("stick", (0.4, 0.02, 0.02), robot.tool_pose(q0, arm) @ translation(0.15, 0, 0), movable=True)
+    world.attach("stick", arm, q0)
+    world.in_collision(q0)  # builds the geometry model
+    root, radius = world._reach(f"{arm}_arm")
+    gm, gd, data = world._gm, pin.GeometryData(world._gm), robot.model.createData()
+    rng = np.random.default_rng(1)
+    worst = 0.0
+    for _ in range(300):
+        q = robot.random_q(rng, q0, groups=(f"{arm}_arm", f"{arm}_gripper"))
+        pin.updateGeometryPlacements(robot.model, data, gm, gd, q)
+        centre = data.oMi[root].translation
+        for k, go in enumerate(gm.geometryObjects):
+            if go.parentJoint > 0 and root in robot.model.supports[go.parentJoint]:
+                box = go.geometry.aabb_local
+                for corner in ((x, y, z) for x in (box.min_[0], box.max_[0]) for y in (box.min_[1], box.max_[1])
+                               for z in (box.min_[2], box.max_[2])):
+                    worst = max(worst, np.linalg.norm(gd.oMg[k].act(np.array(corner)) - centre))
+    assert worst <= radius
+    assert worst > 0.6 * radius  # not a vacuous bound
