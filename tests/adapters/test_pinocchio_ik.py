@@ -114,3 +114,58 @@ def test_ik_with_world_rejects_collisions_unless_ignored(robot):
     solution = solve_ik(robot, "left", target, q_open, rng, world=world)
     assert solution is not None
     assert not world.in_collision(robot.set(q_open, "left_arm", solution))
+
+
+def _textbook_clik(ik, target, seed, tol_pos, tol_rot, max_iters=60, damping=1e-6, max_step=0.5):
+    """ArmIK.clik as written with numpy's public functions: the reference its fast loop must equal."""
+    model, data, group, q, fid = ik.model, ik.data, ik.group, ik._q, ik.tool
+    lin = ~np.asarray(group.circular)
+    v = np.array(seed, dtype=float)
+    for _ in range(max_iters):
+        group.write(q, v)
+        pin.computeJointJacobians(model, data, q)
+        error_frame = pin.updateFramePlacement(model, data, fid).actInv(target)
+        err = pin.log6(error_frame).vector
+        if np.linalg.norm(error_frame.translation) < tol_pos and np.linalg.norm(err[3:]) < tol_rot:
+            return group.wrap(v)
+        jac = pin.Jlog6(error_frame.inverse()) @ pin.getFrameJacobian(model, data, fid, pin.LOCAL)
+        step = jac.T @ np.linalg.solve(jac @ jac.T + np.eye(6) * damping, err)
+        if np.abs(step).max() > max_step:
+            step *= max_step / np.abs(step).max()
+        moved = v + step
+        moved[lin] = np.clip(moved[lin], group.lower[lin], group.upper[lin])
+        if np.abs(moved - v).max() < 1e-6:
+            return None
+        v = moved
+    return None
+
+
+@pytest.mark.parametrize("solver", ["gufunc", "public"])
+def test_ik_iterations_give_the_textbook_floats_bit_for_bit(robot, solver, monkeypatch):
+    """The IK loop skips numpy's wrappers for speed, not its arithmetic: from the same seeds it returns
+    exactly the floats (or the failures) of the plain formula, so a faster IK changes no plan; also with
+    the public np.linalg.solve it falls back to where numpy lacks the private gufunc."""
+    from interlayer_pinocchio import ik as ik_module
+    from interlayer_pinocchio.ik import arm_ik
+
+    if solver == "public":
+        monkeypatch.setattr(ik_module, "_solve1", ik_module._public_solve1)
+
+    rng = np.random.default_rng(7)
+    for arm in robot.arms:
+        ik = arm_ik(robot, arm)
+        outcomes = set()
+        for i in range(40):
+            seed, v = ik.group.sample(rng), ik.group.sample(rng)
+            ik.group.write(ik._q, v)
+            pin.framesForwardKinematics(ik.model, ik.data, ik._q)
+            target = ik.data.oMf[ik.tool].copy()
+            if i % 2:  # half of them out of reach or against a limit: the failures must agree too
+                target.translation += rng.normal(0.0, 0.3, 3)
+            want = _textbook_clik(ik, target, seed, 1e-3, math.radians(1.0))
+            got = ik.clik(target, seed, 1e-3, math.radians(1.0))
+            assert (got is None) == (want is None), (arm, i)
+            if want is not None:
+                assert np.array_equal(got, want), (arm, i, got - want)
+            outcomes.add(want is None)
+        assert outcomes == {True, False}  # both kinds were compared

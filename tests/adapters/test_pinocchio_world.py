@@ -356,3 +356,72 @@ def test_motion_bound_bounds_how_far_any_body_moves(robot):
             assert worst <= bound
             if group != "base":  # not a vacuous bound (the base's counts every link stretched out)
                 assert worst > bound / np.sqrt(g.dof)
+
+
+def test_an_arm_checker_leaves_out_what_the_arm_cannot_reach_and_follows_it_when_moved(robot):
+    """An arm's checker keeps bodies beyond the arm's reach out of the broad phase (they cannot
+    collide with it), and takes one back in when set_pose brings it within reach: same answers."""
+    world = CollisionWorld(robot)
+    world.add_box("table", (0.6, 1.2, 0.7), translation(0.8, 0.0, 0.35))
+    world.add_box("far", (0.2, 0.2, 0.2), translation(4.0, 0.0, 0.8), movable=True)
+    q = robot.default_q()
+    g = robot.group("left_arm")
+    reach = [0.3, 0.0, 0.0, -0.2, 0.0, -0.2, 0.0]  # stretched out in front
+    is_valid = world.checker_for("left_arm", q)
+    assert is_valid(reach) and not world.in_collision(g.set(q, reach))
+    slot = next(s for s in world._slots if s.far is not None)  # the checker's
+    assert slot.off[world._gm.getGeometryId("far")] and not slot.off[world._gm.getGeometryId("table")]
+    world.set_pose("far", robot.tool_pose(g.set(q, reach), "left"))  # now where the hand is
+    assert world.in_collision(g.set(q, reach)) and not is_valid(reach)
+    world.set_pose("far", translation(4.0, 0.0, 0.8))
+    assert is_valid(reach)
+
+
+def test_the_broad_phase_meets_the_objects_before_the_robots_self_pairs(robot):
+    """A check stops at its first hit, and the manager tests geometries in the order they were
+    registered: the objects come first, so an arm in an object is found before the robot's self pairs
+    (the costliest meshes) are tested, also after the slot changes which geometries it leaves out."""
+    world = table_world(robot)
+    q = robot.default_q()
+    checks = [lambda: world.in_collision(q), lambda: world.checker_for("left_arm", q)([0.0] * 7),
+              lambda: world.in_collision(q, movables=False)]
+    # more query kinds than slots: a reused slot takes back the cylinder the last one ignored
+    checks += [lambda i=i: world.in_collision(q, ignore={f"cyl{i}"}) for i in range(12)]
+    for check in checks:
+        check()
+        slot = world._slots[0]
+        objs = slot.manager.getManager().getObjects()
+        registered = [objs[i].collisionGeometry() for i in range(len(objs))]
+        assert len(registered) == int((~slot.off).sum())
+        first_mesh = [isinstance(g, coal.BVHModelBase) for g in registered].index(True)  # the robot's links
+        assert any(isinstance(g, coal.Cylinder) for g in registered[:first_mesh])
+        assert not any(isinstance(g, coal.Cylinder) for g in registered[first_mesh:])  # no object after them
+
+
+@pytest.mark.parametrize("name", ["pr2", "panda"])
+def test_an_arms_reach_bounds_every_body_it_moves(name):
+    """What an arm's checker leaves out rests on _reach: no corner of a body moving with the arm (its
+    links, the fingers at any opening, a held object) gets further from the arm's first joint."""
+    robot = Robot.load(name)
+    world = CollisionWorld(robot)
+    arm = robot.arms[0]
+    q0 = robot.default_q()
+    world.add_box("stick", (0.4, 0.02, 0.02), robot.tool_pose(q0, arm) @ translation(0.15, 0, 0), movable=True)
+    world.attach("stick", arm, q0)
+    world.in_collision(q0)  # builds the geometry model
+    root, radius = world._reach(f"{arm}_arm")
+    gm, gd, data = world._gm, pin.GeometryData(world._gm), robot.model.createData()
+    rng = np.random.default_rng(1)
+    worst = 0.0
+    for _ in range(300):
+        q = robot.random_q(rng, q0, groups=(f"{arm}_arm", f"{arm}_gripper"))
+        pin.updateGeometryPlacements(robot.model, data, gm, gd, q)
+        centre = data.oMi[root].translation
+        for k, go in enumerate(gm.geometryObjects):
+            if go.parentJoint > 0 and root in robot.model.supports[go.parentJoint]:
+                box = go.geometry.aabb_local
+                for corner in ((x, y, z) for x in (box.min_[0], box.max_[0]) for y in (box.min_[1], box.max_[1])
+                               for z in (box.min_[2], box.max_[2])):
+                    worst = max(worst, np.linalg.norm(gd.oMg[k].act(np.array(corner)) - centre))
+    assert worst <= radius
+    assert worst > 0.6 * radius  # not a vacuous bound

@@ -23,6 +23,18 @@ from .robot import Robot
 __all__ = ["solve_ik", "arm_ik", "ArmIK"]
 
 
+def _public_solve1(a, b, signature=None):
+    """np.linalg.solve for one right-hand side: the same floats as numpy's gufunc below, slower."""
+    return np.linalg.solve(a, b)
+
+
+try:  # what np.linalg.solve calls for one right-hand side, without its wrappers (a third of an IK iteration);
+    # a private numpy name, checked once here: a numpy without it gets the public function
+    from numpy.linalg._umath_linalg import solve1 as _solve1
+except ImportError:
+    _solve1 = _public_solve1
+
+
 class ArmIK:
     """Reduced model + solver state for one arm (built once per robot and arm, see :func:`arm_ik`)."""
 
@@ -45,7 +57,8 @@ class ArmIK:
         self.reach = sum(np.linalg.norm(self.model.jointPlacements[j].translation)
                          for j in range(2, self.model.njoints))
         self.reach += np.linalg.norm(self.model.frames[self.tool].placement.translation)
-        self._linear = ~np.asarray(self.group.circular)
+        self._lin = np.flatnonzero(~np.asarray(self.group.circular))  # the bounded values, clipped to their limits
+        self._lin_lower, self._lin_upper = self.group.lower[self._lin], self.group.upper[self._lin]
         self._q = pin.neutral(self.model)
 
     def target_in_model(self, robot: Robot, q_start, target) -> pin.SE3:
@@ -57,7 +70,11 @@ class ArmIK:
              max_iters: int = 60, damping: float = 1e-6, max_step: float = 0.5) -> np.ndarray | None:
         """Arm vector reaching ``target`` (reduced-model frame) from ``seed``, or None if not converged."""
         model, data, group, q, fid = self.model, self.data, self.group, self._q, self.tool
-        lower, upper, lin = group.lower, group.upper, self._linear
+        # The hot loop of IK (tens of thousands of iterations on a big scene): numpy's wrappers cost more
+        # than the 6x6 algebra, so it calls what they call, with the same floats out (same seed, same
+        # plan): norm is sqrt(x.dot(x)), solve the LAPACK gufunc, clip maximum-then-minimum.
+        lin, lower, upper = self._lin, self._lin_lower, self._lin_upper
+        sqrt, solve1, jlog6, log6, frame_jacobian = math.sqrt, _solve1, pin.Jlog6, pin.log6, pin.getFrameJacobian
         v = np.array(seed, dtype=float)
         eye = np.eye(6) * damping
         for _ in range(max_iters):
@@ -65,16 +82,17 @@ class ArmIK:
             pin.computeJointJacobians(model, data, q)  # includes forward kinematics
             current = pin.updateFramePlacement(model, data, fid)
             error_frame = current.actInv(target)  # target seen from the current tool frame
-            err = pin.log6(error_frame).vector
-            if np.linalg.norm(error_frame.translation) < tol_pos and np.linalg.norm(err[3:]) < tol_rot:
+            err = log6(error_frame).vector
+            t, r = error_frame.translation, err[3:]
+            if sqrt(t.dot(t)) < tol_pos and sqrt(r.dot(r)) < tol_rot:
                 return group.wrap(v)
-            jac = pin.Jlog6(error_frame.inverse()) @ pin.getFrameJacobian(model, data, fid, pin.LOCAL)
-            step = jac.T @ np.linalg.solve(jac @ jac.T + eye, err)
+            jac = jlog6(error_frame.inverse()) @ frame_jacobian(model, data, fid, pin.LOCAL)
+            step = jac.T @ solve1(jac @ jac.T + eye, err, signature="dd->d")
             biggest = np.abs(step).max()
             if biggest > max_step:
                 step *= max_step / biggest
             moved = v + step
-            moved[lin] = np.clip(moved[lin], lower[lin], upper[lin])
+            moved[lin] = np.minimum(np.maximum(moved[lin], lower), upper)
             if np.abs(moved - v).max() < 1e-6:  # stuck (local minimum or against a limit)
                 return None
             v = moved

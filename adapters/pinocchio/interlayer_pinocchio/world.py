@@ -4,10 +4,10 @@ One ``pin.GeometryModel`` holds the robot's collision meshes followed by the
 environment objects (attached to the universe, or to a wrist joint while held).
 It lists every pair that could ever matter: SRDF-filtered robot self pairs,
 robot x object and object x object.  A query only *activates* the pairs it
-needs (a cached boolean mask per kind of query), then one C++ call runs FK,
-geometry placement, the naive broadphase (AABB test of every pair; the
-DynamicAABBTreeArray manager gave wrong answers) and the narrow phase, stopping
-at the first hit.
+needs (a cached boolean mask per kind of query, pairs.py), then one C++ call runs FK,
+geometry placement, the naive broadphase (AABB test of every pair of the geometries
+the query needs; the DynamicAABBTreeArray manager gave wrong answers) and the narrow
+phase, stopping at the first hit.
 
 Contact semantics are Coal's: touching (distance 0) counts as collision, so an
 object resting exactly on a table collides with it once held -- place objects
@@ -25,12 +25,12 @@ import pinocchio as pin
 
 from .distances import Distances, _as_q, _transform
 from .joints import as_se3
+from .pairs import Pairs, _Slot, _Variant
 from .robot import Robot
 
 __all__ = ["CollisionWorld", "WorldObject", "Attachment"]
 
 DEFAULT_COLOR = (0.7, 0.7, 0.7, 1.0)
-_MAX_SLOTS = 6
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,45 +78,7 @@ class _Obj:
         self.gid = -1  # index in the combined GeometryModel
 
 
-class _Variant:
-    """A cached pair-activation mask and the security margin of its checks; ``version`` ties it to
-    the world state it was built for."""
-
-    __slots__ = ("key", "mask", "version", "margin")
-
-    def __init__(self, key, mask, version, margin=0.0):
-        self.key, self.mask, self.version, self.margin = key, mask, version, margin
-
-
-class _Slot:
-    """GeometryData + broadphase manager with one variant's mask applied.
-
-    A few slots are kept so that alternating query kinds (e.g. ``in_collision`` and
-    ``colliding_movables``) does not re-toggle hundreds of pairs on every call.
-    """
-
-    __slots__ = ("gd", "gm", "manager", "variant", "mask", "margin")
-
-    def __init__(self, model, gm):
-        self.gd, self.gm = pin.GeometryData(gm), gm
-        self.manager = pin.BroadPhaseManager_NaiveCollisionManager(model, gm, self.gd)
-        self.variant: _Variant | None = None
-        self.mask = np.ones(len(gm.collisionPairs), dtype=bool)  # GeometryData starts all-active
-        self.margin = 0.0
-
-    def apply(self, variant: _Variant) -> None:
-        for k in np.flatnonzero(self.mask != variant.mask).tolist():
-            if variant.mask[k]:
-                self.gd.activateCollisionPair(k)
-            else:
-                self.gd.deactivateCollisionPair(k)
-        if variant.margin != self.margin:  # also widens the broad phase's boxes by as much
-            n = self.gm.ngeoms
-            self.gd.setSecurityMargins(self.gm, np.full((n, n), variant.margin), True, True)
-        self.mask, self.variant, self.margin = variant.mask, variant, variant.margin
-
-
-class CollisionWorld(Distances):
+class CollisionWorld(Distances, Pairs):
     """Environment objects around a :class:`Robot`, held objects, and collision queries on full ``q``."""
 
     def __init__(self, robot: Robot):
@@ -125,6 +87,8 @@ class CollisionWorld(Distances):
         self._data = robot.model.createData()
         self._objects: dict[str, _Obj] = {}
         self._version = 0  # bumped by add/remove/attach/detach: masks depend on it
+        self._poses = 0  # bumped when set_pose moves an object: what an arm can reach depends on it
+        self._far_cache = {}
         self._needs_build = True
         self._variants: dict[tuple, _Variant] = {}
         self._slots: list[_Slot] = []  # most recently used first
@@ -188,9 +152,15 @@ class CollisionWorld(Distances):
         obj = self._get(name)
         if obj.held_by is not None:
             raise ValueError(f"{name!r} is held by the {obj.held_by} arm; detach it first")
-        obj.pose = as_se3(pose)
+        new = as_se3(pose)
+        if new == obj.pose:  # sync() sets every object's pose again
+            return
+        obj.pose = new
+        self._poses += 1
         if not self._needs_build:
-            self._gm.geometryObjects[obj.gid].placement = obj.pose
+            self._gm.geometryObjects[obj.gid].placement = new
+            for slot in self._slots:
+                slot.gm.geometryObjects[obj.gid].placement = new
 
     def pose(self, name: str, q=None) -> np.ndarray:
         """World pose (4x4); a held object needs the configuration ``q``."""
@@ -290,14 +260,20 @@ class CollisionWorld(Distances):
         key = ("check", group, frozenset(ignore), bool(movables)) + ((float(margin),) if margin else ())
         write, compute = g.write, pin.computeCollisions
         model, data, q = self._model, self._data, np.array(q_fixed, dtype=float)
-        slot = self._use(key)
-        cache = [slot, slot.variant]
+
+        def acquire():  # the bodies out of the arm's reach from q_fixed are left out of the broad phase
+            slot = self._use(key, self._far(group, q, float(margin)))
+            cache[:] = slot, slot.variant, slot.far, self._poses
+            return slot
+
+        cache = []
+        acquire()
 
         def is_valid(values) -> bool:
-            slot, variant = cache
-            if slot.variant is not variant or variant.version != self._version:
-                slot = self._use(key)  # another query took the slot, or the world changed
-                cache[:] = slot, slot.variant
+            slot, variant, far, poses = cache
+            if slot.variant is not variant or slot.far is not far or variant.version != self._version \
+                    or poses != self._poses:
+                slot = acquire()  # another query took the slot, or the world changed
             write(q, values)
             return not compute(model, data, slot.manager, q, True)
 
@@ -329,13 +305,14 @@ class CollisionWorld(Distances):
 
     def _place(self, obj: _Obj) -> None:
         """Put ``obj``'s geometry on the universe or, while held, on the wrist joint."""
-        go = self._gm.geometryObjects[obj.gid]
-        if obj.held_by is None:
-            go.parentJoint, go.parentFrame, go.placement = 0, 0, obj.pose
-        else:
-            fid = self.robot.tool_frame_id(obj.held_by)
-            go.parentJoint, go.parentFrame = self._tool_joint[obj.held_by], fid
-            go.placement = self._model.frames[fid].placement * obj.grasp  # joint_T_tool * tool_T_object
+        for gm in [self._gm] + [slot.gm for slot in self._slots]:
+            go = gm.geometryObjects[obj.gid]
+            if obj.held_by is None:
+                go.parentJoint, go.parentFrame, go.placement = 0, 0, obj.pose
+            else:
+                fid = self.robot.tool_frame_id(obj.held_by)
+                go.parentJoint, go.parentFrame = self._tool_joint[obj.held_by], fid
+                go.placement = self._model.frames[fid].placement * obj.grasp  # joint_T_tool * tool_T_object
 
     def _build(self) -> None:
         """(Re)create the combined geometry model, its pairs, data and broadphase manager."""
@@ -357,112 +334,7 @@ class CollisionWorld(Distances):
         self._pb = np.array([p[1] for p in pairs], dtype=int)
         self._robot_joint = np.array([go.parentJoint for go in robot_gm.geometryObjects], dtype=int)
         self._needs_build = False
-        for obj in self._objects.values():
-            self._place(obj)
         self._variants.clear()
         self._slots = []
-
-    def _variant(self, key) -> _Variant:
-        if self._needs_build:
-            self._build()
-        v = self._variants.get(key)
-        if v is None or v.version != self._version:
-            if v is not None or len(self._variants) > 64:
-                self._variants = {k: x for k, x in self._variants.items() if x.version == self._version}
-            v = self._variants[key] = _Variant(key, self._mask(*key[:4]), self._version, *key[4:])
-        return v
-
-    def _use(self, key) -> _Slot:
-        """A slot whose GeometryData has ``key``'s pair mask active (reused, else least recently used)."""
-        v = self._variant(key)
-        slots = self._slots
-        for i, slot in enumerate(slots):
-            if slot.variant is v:
-                break
-        else:
-            if len(slots) < _MAX_SLOTS:
-                slot = _Slot(self._model, self._gm)
-                slots.append(slot)
-            else:
-                slot = slots[-1]
-            slot.apply(v)
-            i = slots.index(slot)
-        if i:
-            slots.insert(0, slots.pop(i))
-        return slot
-
-    def _mask(self, mode: str, group: str | None, ignore: frozenset, movables: bool) -> np.ndarray:
-        """Which pairs a query checks; see ``in_collision`` / ``colliding_movables`` for the rules."""
-        unknown = ignore - self._objects.keys()
-        if unknown:
-            raise KeyError(f"ignore names unknown objects: {sorted(unknown)}")
-        n, nr = self._gm.ngeoms, self._n_robot
-        held = np.full(n, -1)  # index into robot.arms of the holding arm
-        movable = np.zeros(n, dtype=bool)
-        ignored = np.zeros(n, dtype=bool)
-        joint = np.zeros(n, dtype=int)  # parent joint, for "moves with group"
-        joint[:nr] = self._robot_joint
         for obj in self._objects.values():
-            movable[obj.gid] = obj.movable
-            ignored[obj.gid] = obj.name in ignore
-            if obj.held_by is not None:
-                held[obj.gid] = self._arms.index(obj.held_by)
-                joint[obj.gid] = self._tool_joint[obj.held_by]
-        is_held = held >= 0
-        a, b = self._pa, self._pb
-        robot_a, robot_b = a < nr, b < nr
-        # holder_hand[k]: pair k is (robot geom a, held object b) and a belongs to the holding hand
-        holder_hand = np.zeros(len(a), dtype=bool)
-        for i, arm in enumerate(self._arms):
-            sel = robot_a & ~robot_b & (held[b] == i)
-            holder_hand[sel] = self._gripper[arm][a[sel]]
-        if mode == "check":
-            obstacle = ~is_held & ~ignored & (movables | ~movable)
-            self_pair = robot_a & robot_b
-            robot_obj = robot_a & ~robot_b & ~ignored[b] & np.where(is_held[b], ~holder_hand, obstacle[b])
-            held_ok = is_held & ~ignored
-            obj_obj = ~robot_a & ((held_ok[a] & (obstacle[b] | held_ok[b])) | (held_ok[b] & obstacle[a]))
-            mask = self_pair | robot_obj | obj_obj
-        elif mode == "movables":
-            target = movable & ~is_held & ~ignored
-            held_ok = is_held & ~ignored
-            robot_obj = robot_a & ~robot_b & target[b]
-            obj_obj = ~robot_a & ((held_ok[a] & target[b]) | (held_ok[b] & target[a]))
-            mask = robot_obj | obj_obj
-        else:
-            raise ValueError(mode)
-        if group is not None:
-            # A pair can only change if a group joint lies on the kinematic path between
-            # its two geometries, i.e. in exactly one of their supports (root -> parent
-            # joint; empty for the environment).  Moving the base thus skips self pairs.
-            group_joints = self.robot.group(group).joint_ids
-            supports = self._model.supports
-            below = np.zeros((n, len(group_joints)), dtype=bool)
-            for gid in range(n):
-                if joint[gid] > 0:
-                    support = set(supports[int(joint[gid])])
-                    below[gid] = [j in support for j in group_joints]
-            mask &= (below[a] != below[b]).any(axis=1)
-        return mask
-
-    def _colliding_pairs(self, q, key) -> list[tuple[int, int]]:
-        """(geom a, geom b) pairs in collision: broadphase candidates, then exact narrow phase."""
-        slot = self._use(key)
-        callback = pin.CollisionCallBackCollect(self._gm, slot.gd)
-        pin.computeCollisions(self._model, self._data, slot.manager, callback, _as_q(q))
-        out = []
-        for k in sorted(set(callback.pair_indexes)):
-            if pin.computeCollision(self._gm, slot.gd, k):
-                a, b = int(self._pa[k]), int(self._pb[k])
-                if a >= self._n_robot and self._holder(a) is None and self._holder(b) is not None:
-                    a, b = b, a  # held object first
-                out.append((a, b))
-        return out
-
-    def _holder(self, gid: int) -> str | None:
-        """Arm holding object geometry ``gid`` (None if not held)."""
-        return self._objects[self._gm.geometryObjects[gid].name].held_by
-
-    def _label(self, gid: int) -> str:
-        return self._link_names[gid] if gid < self._n_robot else self._gm.geometryObjects[gid].name
-
+            self._place(obj)
