@@ -47,8 +47,9 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
         "IsBPFPD": ("bpose", "obj", "arm", "surf", "slot"), "IsGPFPD": ("pdpose", "obj", "arm", "surf", "slot"),
         "Obstructs": ("obj", "gpose"), "PDObstructs": ("obj", "pdpose"), "NoGrasp": ("gpose",),
     }
-    # with floor obstacles, ``item``s are what the gripper can hold (pose references exist for them only) and
-    # ``floor`` obstacles are pushed; both are ``obj``s (they obstruct alike)
+    # with floor obstacles, ``item``s are what the gripper can hold (pose references exist for them only),
+    # ``floor`` obstacles the ones it cannot; both are ``obj``s (they obstruct alike); floor obstacles of
+    # either kind are ``Pushable`` (an item: until it is picked)
     it = "item" if floor else "obj"
     skolems = [
         Skolem("bpfg", (it, "arm"), "bpose", "IsBPFG", "a base pose from which arm can grasp obj"),
@@ -82,12 +83,12 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
         pick_pre.append(f"(not ({done}))")
         place_pre.append(f"(not ({done}))")
     if floor:  # obstacles standing on the floor (floor_object_names): what blocks the base is learned from drives
-        preds.update({"BaseObstructs": ("obj", "bpose"), "FinalClear": ("obj",), "PushBlocked": ("obj", "floor"),
-                      "Pushable": ("floor",)})
+        preds.update({"BaseObstructs": ("obj", "bpose"), "FinalClear": ("obj",), "PushBlocked": ("obj", "obj"),
+                      "Pushable": ("obj",)})
         pick_pre.append("(forall (?f - obj) (not (BaseObstructs ?f ?bp)))")
         place_pre.append("(forall (?f - obj) (not (BaseObstructs ?f ?bp)))")
         pick_eff += ["(forall (?p - bpose) (not (BaseObstructs ?o ?p)))", "(FinalClear ?o)",
-                     "(forall (?x - floor) (not (PushBlocked ?o ?x)))"]
+                     "(forall (?x - obj) (not (PushBlocked ?o ?x)))", "(not (Pushable ?o))"]
     drive_learn = {"base_obstruction": ("(BaseObstructs ?blocker ?bp)",)} if floor else {}
     if goal_poses:
         preds.update({"AtGoalPose": ("obj",), "HasGoalPose": ("obj",), "IsBPFGP": ("bpose", "obj", "arm"),
@@ -131,11 +132,11 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
         # the base pushes ?f along a straight line (the pose generator picks it): whatever ?f blocked, it no
         # longer does; what it blocks where it ends up is learned again from the failures it causes there
         actions.append(ActionSpec(
-            name="push", parameters=(("?f", "floor"),),
-            precondition=f"(and (Pushable ?f) (forall (?b - obj) (not (PushBlocked ?b ?f))){f' (not ({done}))' if done else ''})",
+            name="push", parameters=(("?f", "obj"),),
+            precondition=f"(and (Pushable ?f) (Resting ?f) (forall (?b - obj) (not (PushBlocked ?b ?f))){f' (not ({done}))' if done else ''})",
             effect="""(and (forall (?p - bpose) (not (BaseObstructs ?f ?p))) (FinalClear ?f)
                           (forall (?p - gpose) (not (Obstructs ?f ?p))) (forall (?p - pdpose) (not (PDObstructs ?f ?p)))
-                          (forall (?x - floor) (not (PushBlocked ?f ?x))))""",
+                          (forall (?x - obj) (not (PushBlocked ?f ?x))))""",
             # no push of ?f: every side of it is against a wall or out of the base's reach (fixed obstacles
             # only: true while ?f stands there, forgotten at a reset)
             learn={"base_obstruction": ("(PushBlocked ?blocker ?f)",), "obstruction": ("(PushBlocked ?blocker ?f)",),

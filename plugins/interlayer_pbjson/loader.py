@@ -203,7 +203,7 @@ def build_problem(scene, source, symbols) -> Problem:
     domain = pbjson_domain(tops="top" in kinds, goal_poses=bool(goals["poses"]), sinks="sink" in kinds,
                            stoves="stove" in kinds, home=goals["home"], go_to=bool(goals["base"]),
                            floor=bool(scene.floor_objects))
-    # a floor obstacle the gripper can hold is picked like any object (an item); any other one is pushed by the base
+    # a floor obstacle the gripper can hold is picked like any object (an item) or pushed; any other one is pushed
     handled = floor_handling(geometry)
     extra["floor_handling"] = handled
     objects = {o: "floor" if handled.get(o) == "push" else "item" if handled else "obj" for o in names}
@@ -211,8 +211,8 @@ def build_problem(scene, source, symbols) -> Problem:
     objects.update({s: "slot" for s in slots})
     objects.update({s: "surf" for s in spots})
     init = {("HandEmpty", a) for a in ARMS} | {("Other", "left", "right"), ("Other", "right", "left")}
-    init |= {("Resting", o) for o in names if handled.get(o, "pick") == "pick"}
-    init |= {("Pushable", o) for o, how in handled.items() if how == "push"}
+    init |= {("Resting", o) for o in names}
+    init |= {("Pushable", o) for o in handled}
     init |= {("FinalClear", o) for o in names} if handled else set()  # nothing blocks the final drive until it fails
     world = geometry.initial_world()
     if geometry.in_collision(world):
@@ -251,7 +251,8 @@ def build_problem(scene, source, symbols) -> Problem:
 
 def floor_handling(geometry) -> dict:
     """Floor obstacle -> "pick" when a grasp of the file's kinds fits the gripper (the width proof of every
-    object), else "push" (the base pushes it; the files give no masses, so size is the only limit)."""
+    object; it may be pushed too, e.g. where the arm cannot reach it), else "push" (the base pushes it; the
+    files give no masses, so size is the only limit)."""
     from interlayer_manip.generators import fits_gripper
 
     kinds = geometry.layout.grasps

@@ -37,7 +37,7 @@ def describe(geometry) -> str:
     for name, how in floor.items():
         o = geometry.specs[name]
         size = "x".join(f"{v:.3f}" for v in (o.size if o.shape == "box" else (2 * o.size[0], o.size[1])))
-        can = "pick (a grasp fits the gripper)" if how == "pick" else \
+        can = "pick (a grasp fits the gripper) or push with the base" if how == "pick" else \
             f"push with the base (no grasp fits the gripper's {geometry.robot.max_gripper_opening:.3f} m opening)"
         lines.append(f"    {show(name)}: {o.shape} {size} m at ({o.pose[0]:.3f}, {o.pose[1]:.3f}), "
                      f"yaw {math.degrees(o.pose[3]):.0f} deg: {can}")
