@@ -155,3 +155,19 @@ def test_a_floor_obstacle_standing_in_a_wall_stays_fixed_and_check_says_so(tmp_p
     path.write_text(json.dumps(data))
     assert main(["check", str(path)]) == 0
     assert "Note: stuck: a floor obstacle 60 mm inside north, kept fixed as part of it" in capsys.readouterr().out
+
+
+def test_the_animation_moves_the_pushed_box_with_the_base(pushed):
+    from interlayer_meshcat import Scene
+
+    result, _, traj = pushed
+    g = result.problem.geometry
+    scene = Scene("corridor")
+    g.draw_scene(scene, None)
+    frames = g.animation_frames(scene, traj)
+    xs = [f["blocker"][0, 3] for f in frames if "blocker" in f]
+    end = [s for step in traj["steps"] for s in step["segments"] if s["kind"] == "push"][-1]
+    assert xs[0] == pytest.approx(0.0) and len(set(np.round(xs, 3))) > 10  # it slides, not jumps
+    B = np.asarray(end["base_T_object"])
+    x, y, th = end["points"][-1]["positions"]
+    assert xs[-1] == pytest.approx(x + np.cos(th) * B[0, 3] - np.sin(th) * B[1, 3], abs=1e-6)
