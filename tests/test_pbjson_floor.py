@@ -171,3 +171,14 @@ def test_the_animation_moves_the_pushed_box_with_the_base(pushed):
     B = np.asarray(end["base_T_object"])
     x, y, th = end["points"][-1]["positions"]
     assert xs[-1] == pytest.approx(x + np.cos(th) * B[0, 3] - np.sin(th) * B[1, 3], abs=1e-6)
+
+
+def test_of_the_floor_obstacles_a_wandering_drive_names_the_one_in_the_way_is_kept(tmp_path):
+    """A relaxed path may run into obstacles the way does not need moved: when the flood fill reaches the
+    goal with one of them gone, that one alone is named."""
+    g = load(tmp_path, corridor()).geometry
+    w = g.initial_world()
+    goal = (1.5, 0.8, 0.0)
+    assert g._cut_off(w, w.base, goal)
+    assert g.one_blocker(w, goal, ("spare", "blocker")) == ("blocker",)
+    assert g.one_blocker(w, goal, ("spare",)) == ("spare",)  # nothing better to say

@@ -221,8 +221,19 @@ class PBGeometry(ManipulationGeometry):
         hit = tuple(o for o in failed.failure.objects if o in self.floor_objects)
         if not hit:
             return w, failed
+        hit = self.one_blocker(world, base, hit)
         self.blocked_drives = [*self.blocked_drives[-15:], (tuple(world.base[:2]), tuple(base[:2]))]
         return w, StepOutcome(False, failure=Failure("base_obstruction", hit, failed.failure.detail))
+
+    def one_blocker(self, world, goal, hit) -> tuple:
+        """A randomized planner's relaxed path wanders and runs into more floor obstacles than the way
+        needs: the first of ``hit`` whose removal alone lets the flood fill reach ``goal`` from the base,
+        if one does (as ``_fewer_blockers`` does for arms); else ``hit``."""
+        for o in hit if len(hit) > 1 else ():
+            area = self._area(world, world.base, without=o)
+            if area is not None and area(float(goal[0]), float(goal[1])):
+                return (o,)
+        return hit
 
     def base_query(self, world, start, goal, label, acc):
         """The base's motion query; when the floor obstacles cut ``goal`` off from ``start`` (the loader's
@@ -237,18 +248,24 @@ class PBGeometry(ManipulationGeometry):
         return query
 
     def _cut_off(self, world, start, goal) -> bool:
+        area = self._area(world, start)
+        return area is not None and not area(float(goal[0]), float(goal[1]))
+
+    def _area(self, world, start, without=None):
+        """Where the base can drive from ``start`` among the fixed shapes and the floor obstacles where
+        ``world`` has them (but ``without``): the loader's ``reachable_area`` (None: no conclusion)."""
         from .loader import reachable_area
         from .samplers import _spec_at
 
-        floor = tuple(sorted((o, tuple(np.round(P[:2, 3], 4))) for o, P in world.objects.items() if o in self.floor_objects))
+        floor = tuple(sorted((o, tuple(np.round(P[:2, 3], 4))) for o, P in world.objects.items()
+                             if o in self.floor_objects and o != without))
         key = (floor, tuple(np.round(np.asarray(start[:2], float), 2)))
         if key not in self._areas:
             if len(self._areas) > 64:
                 self._areas.clear()
             shapes = [*self.layout.fixed, *(_spec_at(self.specs[o], world.objects[o]) for o, _ in floor)]
             self._areas[key] = reachable_area(shapes, start, *self.layout.extra["base_limits"])
-        area = self._areas[key]
-        return area is not None and not area(float(goal[0]), float(goal[1]))
+        return self._areas[key]
 
     # -- pushing a floor obstacle with the base ------------------------------------------------------
     def contact_distance(self, world, obj, heading, far: float = 2.0) -> float | None:
