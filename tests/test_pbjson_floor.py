@@ -154,7 +154,8 @@ def test_a_floor_obstacle_standing_in_a_wall_stays_fixed_and_check_says_so(tmp_p
     path = tmp_path / "stuck.json"
     path.write_text(json.dumps(data))
     assert main(["check", str(path)]) == 0
-    assert "Note: stuck: a floor obstacle 60 mm inside north, kept fixed as part of it" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "floor obstacles (2)" in out and "stuck: nothing (it stands 60 mm inside north: kept fixed as part of it)" in out
 
 
 def test_the_animation_moves_the_pushed_box_with_the_base(pushed):

@@ -187,7 +187,8 @@ def build_problem(scene, source, symbols) -> Problem:
              "surfaces": spots, "colors": scene.colors, "offsets": scene.offsets, "arms": scene.arms, "goals": goals,
              "clutter_table": clutter_table, "table_frame": table_frame, "base_area": reach, "camera": scene.camera,
              "notes": scene.notes, "floors": [o for o in scene.fixed if o.name in scene.floors],  # drawn, not collided with
-             "body_of": scene.body_of, "labels": symbols.labels, "floor_objects": list(scene.floor_objects)}
+             "body_of": scene.body_of, "labels": symbols.labels, "floor_objects": list(scene.floor_objects),
+             "floor_fixed": list(scene.floor_fixed)}
     # the target (Clutter's samplers search harder for its grasps and keep put-downs out of its way): the
     # object to hold, else the one object a goal places
     placed = list(dict.fromkeys([*(m for o in goals["on"] for m in goals["members"][o]), *goals["stackings"], *goals["poses"]]))

@@ -54,6 +54,7 @@ class Scene:
     camera: tuple | None = None  # where the file's camera looks from (relative to the scene's centre)
     body_of: dict = field(default_factory=dict)  # fixed spec -> its body
     floor_objects: list = field(default_factory=list)  # movable objects standing on the floor (floor_object_names)
+    floor_fixed: list = field(default_factory=list)  # (name, fixed shape, depth) of those standing in a fixed body
 
 
 def rotation(q, where) -> np.ndarray:
@@ -366,7 +367,7 @@ def read_scene(data, label, symbols) -> Scene:
     for n in surfaces:
         if n in specs:
             raise UserError(f"task: {n!r} is both a movable object and a surface.")
-    on_floor = [sym[n] for n in on_floor]
+    on_floor, floor_fixed = [sym[n] for n in on_floor], []
     for name, wall, depth in embedded([o for o in fixed if o.name not in floors], [o for o in objects if o.name in on_floor]):
         # a floor obstacle standing in a wall is part of it (decision_wall_namo_3): no push gets it out
         spec = next(o for o in objects if o.name == name)
@@ -374,8 +375,7 @@ def read_scene(data, label, symbols) -> Scene:
         on_floor.remove(name)
         fixed.append(ObjectSpec(spec.name, spec.shape, spec.size, spec.pose, movable=False))
         body_of[spec.name] = name
-        notes.append(f"{symbols.label(name)}: a floor obstacle {depth * 1000:.0f} mm inside {symbols.label(body_of.get(wall, wall))}, "
-                     f"kept fixed as part of it")
+        floor_fixed.append((name, body_of.get(wall, wall), depth))
     robots = data["robots"]
     if not isinstance(robots, list) or len(robots) != 1:
         raise UserError(f"robots: exactly one robot (a PR2) is supported, got {len(robots) if isinstance(robots, list) else robots!r}.")
@@ -389,7 +389,7 @@ def read_scene(data, label, symbols) -> Scene:
         camera = tuple(float(v) for v in point(data["camera"]["point"], "camera.point") - centre)
     return Scene(str(task.get("name") or data.get("name") or label), fixed, objects, offsets, surfaces, colors, floors,
                  base, torso, arms, tuple(dict.fromkeys(str(g).lower() for g in grasps)), goals, notes, camera, body_of,
-                 on_floor)
+                 on_floor, floor_fixed)
 
 
 def embedded(fixed, objects) -> list:

@@ -32,8 +32,9 @@ def describe(geometry) -> str:
         on = show(*geometry.supports_of(o.name, world.objects[o.name], world)) or "nothing known"
         lines.append(f"  {show(o.name)}: {o.shape} {size} m at ({o.pose[0]:.3f}, {o.pose[1]:.3f}, {o.pose[2]:.3f}), "
                      f"yaw {math.degrees(o.pose[3]):.0f} deg, on {on}")
-    if floor:
-        lines.append(f"  floor obstacles ({len(floor)}), moved only where a drive finds them in the way:")
+    stuck = extra.get("floor_fixed", [])
+    if floor or stuck:
+        lines.append(f"  floor obstacles ({len(floor) + len(stuck)}), moved only where a drive finds them in the way:")
     for name, how in floor.items():
         o = geometry.specs[name]
         size = "x".join(f"{v:.3f}" for v in (o.size if o.shape == "box" else (2 * o.size[0], o.size[1])))
@@ -41,6 +42,8 @@ def describe(geometry) -> str:
             f"push with the base (no grasp fits the gripper's {geometry.robot.max_gripper_opening:.3f} m opening)"
         lines.append(f"    {show(name)}: {o.shape} {size} m at ({o.pose[0]:.3f}, {o.pose[1]:.3f}), "
                      f"yaw {math.degrees(o.pose[3]):.0f} deg: {can}")
+    for name, wall, depth in stuck:
+        lines.append(f"    {show(name)}: nothing (it stands {depth * 1000:.0f} mm inside {show(wall)}: kept fixed as part of it)")
     b = layout.base
     torso = extra.get("torso_conf")
     torso_note = "" if torso is None or abs(torso - extra["torso_height"]) < 1e-9 else f" (raised from {torso:.3f})"
