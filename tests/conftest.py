@@ -55,10 +55,11 @@ def solved_run(tmp_path_factory, example, name):
     return out
 
 
-def write_plugin(folder, name: str, source: str, dist: str | None = None):
+def write_plugin(folder, name: str, source: str, dist: str | None = None, requires: tuple = ()):
     """A third-party plugin as an installed distribution would look on sys.path: the module
-    ``name`` and a ``*.dist-info`` with its ``interlayer.plugins`` entry point (no pip needed).
-    Returns the folder to put on sys.path (or PYTHONPATH for a subprocess)."""
+    ``name`` and a ``*.dist-info`` with its ``interlayer.plugins`` entry point and ``requires``
+    (``Requires-Dist`` strings) (no pip needed). Returns the folder to put on sys.path (or PYTHONPATH
+    for a subprocess)."""
     import textwrap
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -66,7 +67,8 @@ def write_plugin(folder, name: str, source: str, dist: str | None = None):
     dist = dist or name.replace("_", "-")
     info = folder / f"{dist.replace('-', '_')}-0.1.dist-info"
     info.mkdir(exist_ok=True)
-    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 0.1\n")
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 0.1\n"
+                                   + "".join(f"Requires-Dist: {r}\n" for r in requires))
     (info / "entry_points.txt").write_text(f"[interlayer.plugins]\n{name} = {name}\n")
     return folder
 

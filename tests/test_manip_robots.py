@@ -92,3 +92,123 @@ def test_a_fixed_base_robots_base_pose_generators_offer_only_where_it_stands():
     world = problem.geometry.initial_world()
     found = list(move_base(problem, GroundStep("move_base", ("bpfg_can_arm",)), world, np.random.default_rng(0), limit=20))
     assert found and {c.waypoints[0] for c in found} == {tuple(world.base)}
+
+
+def _clutter25(robot="panda", seed=0):
+    run = api.prepare(str(CLUTTER), [f"problem.robot={robot}", "problem.objects=25", f"planner.seed={seed}"])
+    problem = run.problem
+    return problem, problem.geometry.initial_world()
+
+
+def test_a_fixed_base_robot_puts_down_only_within_its_reach_band():
+    """The free spots of a crowded reach band lie mostly nearer than the band, where the arm reaches no
+    put-down: they are never offered."""
+    import math
+
+    import numpy as np
+
+    from interlayer_clutter.samplers import _table_spots
+
+    problem, world = _clutter25()
+    g, layout = problem.geometry, problem.geometry.layout
+    near, far = layout.extra["reach_near"], layout.extra["reach"]
+    spots = [s for level in _table_spots(g, world, layout.target, np.random.default_rng(0), 80) for s in level]
+    assert len(spots) >= 20
+    d = [math.hypot(x - layout.base[0], y - layout.base[1]) for x, y, _ in spots]
+    assert near - 1e-9 <= min(d) and max(d) <= far + 1e-9
+
+
+def test_a_fixed_base_robot_grasps_an_object_near_its_base_from_the_side():
+    """A fixed base cannot step round an object: near it, where a radial approach would put the pre-grasp
+    on the base, side grasps come from well off the bearing, and the search finds as many as it wants."""
+    import math
+
+    from interlayer_clutter.samplers import ClutterSampler
+
+    problem, world = _clutter25()
+    g, base = problem.geometry, problem.geometry.layout.base
+    dist = {o: math.hypot(P[0, 3] - base[0], P[1, 3] - base[1]) for o, P in world.objects.items()}
+    obj = min((o for o in dist if o != g.layout.target), key=dist.get)
+    assert dist[obj] < 0.45
+    found = ClutterSampler((0,)).grasp_candidates(problem, world, obj, "arm")
+    assert len(found) == 6  # the search's want for an object that is not the target
+    bearing = math.atan2(world.objects[obj][1, 3] - base[1], world.objects[obj][0, 3] - base[0])
+    assert max(abs(math.remainder(math.atan2(T[1, 0], T[0, 0]) - bearing, 2 * math.pi)) for _, _, T, _, _ in found) > 0.5
+
+
+def test_a_fixed_base_robot_puts_down_near_its_base_with_the_hand_turned():
+    """Near a fixed base a put-down facing the base's bearing backs the hand out onto the base: the tool's
+    heading spreads as its grasps' do, and most spots at the band's inner edge are reached."""
+    import math
+    from dataclasses import replace
+
+    import numpy as np
+
+    from interlayer_clutter.samplers import ClutterSampler, _table_spots, putdown_motion
+    from interlayer_manip.generators import _putdown
+
+    problem, world = _clutter25()
+    g, layout = problem.geometry, problem.geometry.layout
+    obj = layout.target
+    T = ClutterSampler((0,)).grasp_candidates(problem, world, obj, "arm")[0][2]
+    G = np.linalg.inv(T) @ world.objects[obj]
+    held = replace(world, objects={k: v for k, v in world.objects.items() if k != obj}, held={"arm": (obj, G)})
+    rng = np.random.default_rng(0)
+    base, near = layout.base, layout.extra["reach_near"]
+    spots = [s for level in _table_spots(g, held, obj, rng, 80) for s in level
+             if math.hypot(s[0] - base[0], s[1] - base[1]) < near + 0.1][:20]
+    assert len(spots) == 20
+    put = [putdown_motion(g, held, "arm", x, y, lambda h, x=x, y=y, z=z: _putdown(G, x, y, z, h)[0], rng)
+           for x, y, z in spots]
+    assert sum(p is not None for p in put) >= 10  # 12 of 20; facing the bearing (+-0.3 rad), 1
+
+
+def test_a_fixed_base_robots_grasp_candidates_are_distinct():
+    """Where the base never moves, the straight-on grasp comes back at every turn of the search: it is tried
+    once, and the candidates offered (to be ranked by what is in their way) are different grasps."""
+    import numpy as np
+
+    from interlayer_clutter.samplers import ClutterSampler
+
+    problem, world = _clutter25(seed=1)
+    target = problem.geometry.layout.target
+    found = ClutterSampler((1,)).grasp_candidates(problem, world, target, "arm")
+    assert len(found) == 12  # the search's want for the target
+    assert len({tuple(np.round(T[:3, :4].ravel(), 4)) for _, _, T, _, _ in found}) == 12  # without the check: 1
+
+
+
+def test_a_fixed_base_robot_never_puts_an_object_down_rolled_over():
+    """IK for a fixed base tries the tool pose rolled half a turn about the approach axis when the pose itself
+    is out of reach: right for a grasp (the fingers swap sides), wrong for a put-down, which would roll the
+    object over with the hand (main's UR5 put a cylinder down upside down: Clutter-25 seed 0, invalid)."""
+    import math
+    from dataclasses import replace
+
+    import numpy as np
+
+    from interlayer_clutter.samplers import ClutterSampler
+    from interlayer_manip.generators import _putdown
+
+    run = api.prepare(str(CLUTTER), ["problem.robot=ur5_gripper", "problem.objects=15", "planner.seed=0"])
+    g, world = run.problem.geometry, run.problem.geometry.initial_world()
+    obj = g.layout.target
+    G = np.linalg.inv(ClutterSampler((0,)).grasp_candidates(run.problem, world, obj, "arm")[0][2]) @ world.objects[obj]
+    held = replace(world, objects={k: v for k, v in world.objects.items() if k != obj}, held={"arm": (obj, G)})
+    base, z, rng = g.layout.base, world.objects[obj][2, 3], np.random.default_rng(0)
+
+    def tool_turn(w, T):  # the tool's rotation away from T (rad) at IK's answer, or None
+        v = g.ik(w, "arm", T, np.random.default_rng(0), attempts=4)
+        R = g.robot.tool_pose(g.sync(w.with_arm("arm", v)), "arm")[:3, :3] if v is not None else None
+        return None if R is None else math.acos(np.clip((np.trace(R.T @ T[:3, :3]) - 1) / 2, -1, 1))
+
+    rolled = 0
+    for _ in range(60):  # put-down poses around the base; some are reached only rolled over (empty-handed)
+        r, a = rng.uniform(0.35, 0.8), rng.uniform(-1.2, 1.2)
+        _, T = _putdown(G, base[0] + r * math.cos(a), base[1] + r * math.sin(a), z, a + rng.uniform(-1.2, 1.2))
+        empty = tool_turn(replace(held, held={}), T)
+        if empty is not None and empty > 3:
+            rolled += 1
+            turn = tool_turn(held, T)
+            assert turn is None or turn < math.radians(2)  # holding the object, never
+    assert rolled >= 1

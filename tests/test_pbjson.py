@@ -1,8 +1,9 @@
-"""The pybullet-planning JSON format (plugins/interlayer_pbjson): reading, every goal kind, clean / cook,
+"""The pybullet-planning JSON format (plugins/manip/interlayer_pbjson): reading, every goal kind, clean / cook,
 one-line errors. Scenes are built here; tests of the shared files skip when those are absent."""
 import copy
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -585,3 +586,91 @@ def test_no_grasp_of_one_object_sends_a_goal_with_a_choice_to_another(tmp_path, 
     one = m.init | {("NoGrasp", "gpfg_a_left")}
     after = m.progress(one, GroundStep("pick", ("a", "right", "left", "bpfg_a_right", "gpfg_a_right", "gpfg_a_left")))
     assert ("NoGrasp", "gpfg_a_left") not in after
+
+
+def shelf_scene(reverse=False):
+    """Box a (5 x 5 x 12 cm) stands between two walls 2.5 cm from its sides, as tall as itself: the fingers fit
+    only across the walls' direction from above (a top grasp). Its goal pose is under a low shelf (a fixed
+    slab 9 cm above its top) that leaves room for a side grasp only: the goal needs a regrasp. ``reverse``:
+    a starts under the shelf and its goal is between the walls."""
+    start, goal = ((1.1, -0.25), (1.1, 0.25)) if reverse else ((1.1, 0.25), (1.1, -0.25))
+    data = scene(goal_poses={"a": [1, 0, 0, 0, *goal, 0.751]}, grasp_types=["SIDE", "TOP"])
+    a = _body("a", (*start, 0.751), [_box((0.025, 0.025, 0.06), (0, 0, 0.06), color=(0, 0, 1))])
+    walls = [_body(f"wall{k}", (1.1, 0.25 + s * 0.06, 0.751), [_box((0.1, 0.01, 0.06), (0, 0, 0.06))])
+             for k, s in ((1, -1), (2, 1))]
+    shelf = _body("shelf", (1.12, -0.25, 0.97), [_box((0.08, 0.08, 0.01))])
+    data["bodies"] = [data["bodies"][0], a, *walls, shelf]
+    data["task"].update(object_names=["a"], sink_names=[], stove_names=[], regions=[])
+    return data
+
+
+def test_a_goal_pose_only_another_grasp_fits_is_reached_by_putting_down_and_grasping_again(tmp_path):
+    """The first pick can only take a from the top; under the shelf only a side grasp fits. The put-down
+    at the goal fails as (BadGrasp a ...), and the task planner puts a down and picks it up again."""
+    path = tmp_path / "shelf.json"
+    path.write_text(json.dumps(shelf_scene()))
+    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=120"])
+    assert result.status == "solved", result.reason
+    assert [s.action for s in result.plan] == ["pick", "place", "pick", "place_at_goal"]
+    out = tmp_path / "out"
+    api.write_outputs(result, out)
+    assert [f for f in json.loads((out / "result.json").read_text())["learned_facts"] if "BadGrasp" in f] in (
+        ["(BadGrasp a gpfgp_a_left)"], ["(BadGrasp a gpfgp_a_right)"])
+    assert api.validate(out) == []
+    trajectory = json.loads((out / "trajectory.json").read_text())
+    grasps = [np.linalg.inv(g["grasp"]) for s in trajectory["steps"] for g in s["segments"] if g["kind"] == "grasp"]
+    assert [bool(abs(T[2, 0]) > 0.7) for T in grasps] == [True, False]  # from the top, then from the side
+
+
+def test_a_put_down_that_fails_for_another_reason_than_the_grasp_asks_for_no_regrasp(tmp_path):
+    """Held from the side, a fits under the shelf: the generator's regrasp verdict is empty (nothing changes
+    for a put-down that fails otherwise); held from the top, only grasps of another kind fit there."""
+    from interlayer_pbjson.samplers import PBSampler
+
+    problem = load(tmp_path, shelf_scene())
+    geometry = problem.geometry
+    world = geometry.initial_world()
+    goal = geometry.layout.extra["goal_centres"]["a"]
+    side = np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])  # tool at the centre, along +x
+    top = np.linalg.inv(np.array([[0, 0, 1, 0], [0, 1, 0, 0], [-1, 0, 0, 0.03], [0, 0, 0, 1.0]]))  # from above
+    sampler = PBSampler(0)
+    for G, kinds in ((side, []), (top, ["side"])):
+        held = replace(world, objects={}, held={"left": ("a", G)})
+        fits = sampler.regrasps(problem, held, "a", "left", [goal])
+        assert sorted({"top" if abs(np.linalg.inv(F)[2, 0]) > 0.7 else "side" for F in fits}) == kinds
+
+    # once learned, a search for grasps of a tries first those that fit at the goal pose
+    sampler.wanted["a"] = fits
+    P = world.objects["a"]
+    offered = [("top", P @ np.linalg.inv(top)), ("side", P @ np.linalg.inv(side))]
+    assert [k for k, _ in sampler.order_grasps(problem, "a", P, offered)] == ["side", "top"]
+    assert [k for k, _ in PBSampler(0).order_grasps(problem, "a", P, offered)] == ["top", "side"]  # else as offered
+
+
+def test_a_grasp_that_cannot_reach_the_goal_pose_is_forgotten_when_the_object_is_picked_again(tmp_path):
+    from interlayer.abstraction import abstract
+    from interlayer.domain import GroundStep
+
+    m = abstract(load(tmp_path, shelf_scene()))
+    pick = GroundStep("pick", ("a", "left", "right", "bpfg_a_left", "gpfg_a_left", "gpfg_a_right"))
+    put = GroundStep("place", ("a", "left", "table", "s1", "bpfpd_a_left_table_s1", "gpfpd_a_left_table_s1"))
+    at_goal = GroundStep("place_at_goal", ("a", "left", "bpfgp_a_left", "gpfgp_a_left"))
+    held = m.progress(m.init, pick)
+    assert m.applicable(held, at_goal)
+    learned = held | {("BadGrasp", "a", "gpfgp_a_left")}
+    assert not m.applicable(learned, at_goal)
+    assert m.applicable(m.progress(m.progress(learned, put), pick), at_goal)
+
+
+@pytest.mark.slow
+def test_a_goal_pose_only_a_top_grasp_fits_is_reached_by_grasping_again_from_the_top(tmp_path):
+    """The reverse of the shelf scene: a starts under the shelf (side grasps only) and its goal is between
+    the walls (top grasps only); where it is put down both kinds fit, and the search tries top grasps first."""
+    path = tmp_path / "shelf.json"
+    path.write_text(json.dumps(shelf_scene(reverse=True)))
+    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=200"])
+    assert result.status == "solved", result.reason
+    assert result.plan[-1].action == "place_at_goal" and [s.action for s in result.plan].count("pick") >= 2
+    out = tmp_path / "out"
+    api.write_outputs(result, out)
+    assert api.validate(out) == []

@@ -16,7 +16,7 @@ from interlayer.cli import main  # noqa: E402
 from interlayer.plugins import ENTRY_POINT_GROUP  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-PANDA = ROOT / "adapters" / "interlayer_pinocchio" / "robots" / "panda.toml"
+PANDA = ROOT / "adapters" / "pinocchio" / "interlayer_pinocchio" / "robots" / "panda.toml"
 
 
 @pytest.fixture

@@ -50,7 +50,7 @@ def test_the_worked_example_passes_robot_check(tmp_path, entry_point):  # noqa: 
 
 
 def test_every_key_of_the_description_is_documented():
-    reader = (ROOT / "adapters" / "interlayer_pinocchio" / "description.py").read_text()
+    reader = (ROOT / "adapters" / "pinocchio" / "interlayer_pinocchio" / "description.py").read_text()
     known = set()
     for group in re.findall(r"r\.keys\([^{]*\{([^}]*)\}", reader):
         known |= set(re.findall(r'"(\w+)"', group))

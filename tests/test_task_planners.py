@@ -182,3 +182,220 @@ def test_an_incomplete_search_without_a_plan_is_no_proof(host):
     res = planner.plan(model, model.init, 30)
     assert res.status == "incomplete" and "incomplete" in res.reason
     assert host["task_planners"].get("ff").factory({}).plan(model, model.init, 30).status == "unsolvable"  # GBFS proves it
+
+
+# -- the adapter on Unified-Planning's public API: the engine's subclass, a check of what it relies on -------
+
+def _without(monkeypatch, where: str, name: str):
+    """Unified-Planning as if it no longer had ``name`` (a class's attribute in module ``where``), with
+    the adapter's check to be run again."""
+    import importlib
+
+    from interlayer_up import compat
+
+    cls_name, attr = name.split(".")
+    monkeypatch.delattr(getattr(importlib.import_module(where), cls_name), attr)
+    compat.check.cache_clear()
+
+
+def _changed(name: str) -> str:
+    from importlib.metadata import version
+
+    release = ".".join(version("unified-planning").split(".")[:2])
+    return (f"unified-planning {release} changed `{name}`: Interlayer's UP adapter supports >=1.3,<1.4; "
+            "pin it or update the adapter.")
+
+
+@pytest.fixture
+def check_again():
+    from interlayer_up import compat
+
+    yield
+    compat.check.cache_clear()  # (after monkeypatch's undo: fixtures end in reverse order)
+
+
+@pytest.mark.parametrize("where, name", [
+    ("unified_planning.engines.pddl_planner", "PDDLPlanner._get_cmd"),  # a hook an engine implements
+    ("unified_planning.engines.pddl_planner", "PDDLPlanner._solve"),  # the hook the adapter overrides
+    ("unified_planning.model", "Problem.kind"),  # a property it overrides for speed
+    ("unified_planning.model.mixins", "InitialStateMixin.explicit_initial_values"),  # one of Problem's it reads
+])
+def test_a_unified_planning_that_changed_what_the_adapter_relies_on_is_named_in_one_sentence(
+        host, check_again, monkeypatch, where, name):
+    """Mutation: `_import_up` no longer calls compat.check (the call goes on into UP's own code)."""
+    from interlayer_up.compat import UnsupportedUnifiedPlanning
+
+    _without(monkeypatch, where, name)
+    model = corridor()
+    with pytest.raises(UnsupportedUnifiedPlanning) as changed:
+        host["task_planners"].get("fast-downward").factory({}).plan(model, model.init, 30)
+    assert str(changed.value) == _changed(name)
+
+
+def test_a_changed_unified_planning_ends_the_cli_with_one_line_and_exit_code_2(check_again, monkeypatch, capsys,
+                                                                                gripper_example):
+    pytest.importorskip("coal", reason="the Gripper-2D domain's scene needs Coal")
+    from interlayer.cli import main
+
+    _without(monkeypatch, "unified_planning.engines.pddl_planner", "PDDLPlanner._get_cmd")
+    code = main(["plan", gripper_example, "-q"])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert err.strip().splitlines() == [f"error: {_changed('PDDLPlanner._get_cmd')}"]
+
+
+def test_an_engine_without_the_attributes_the_adapter_reads_is_named(host, monkeypatch):
+    """Mutation: `_engine` no longer calls compat.check_engine (the run fails later with an AttributeError)."""
+    from unified_planning.engines.pddl_planner import PDDLPlanner
+
+    from interlayer_up.compat import UnsupportedUnifiedPlanning
+
+    init = PDDLPlanner.__init__
+
+    def init_without_requirements(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        del self._needs_requirements
+
+    monkeypatch.setattr(PDDLPlanner, "__init__", init_without_requirements)
+    model = corridor()
+    with pytest.raises(UnsupportedUnifiedPlanning, match=r"^unified-planning \d+\.\d+ changed `PDDLPlanner._needs_requirements`: "):
+        host["task_planners"].get("fast-downward").factory({"warm": False}).plan(model, model.init, 30)
+
+
+@pytest.mark.parametrize("warm", [False, True])
+def test_each_call_runs_in_a_folder_of_its_own_and_ups_functions_stay_ups(host, tmp_path, monkeypatch, warm):
+    """Fast Downward writes output.sas into its working directory: UP runs every command in the process's
+    own, which concurrent calls share. Mutation: `_run_in` starts the process without `cwd=folder`."""
+    from unified_planning.engines import pddl_planner
+
+    from interlayer_up import planner as up_planner
+
+    run_command, real, folders = pddl_planner.run_command, up_planner._run_in, []
+
+    def run_in(folder, cmd, timeout):  # where a process it starts runs, then the engine's command
+        folders.append((folder, real(folder, ["pwd"], 30)[1][0][0].strip()))
+        return real(folder, cmd, timeout)
+
+    monkeypatch.setattr(up_planner, "_run_in", run_in)
+    monkeypatch.chdir(tmp_path)
+    model = corridor()
+    res = host["task_planners"].get("fast-downward").factory({"warm": warm}).plan(model, model.init, 30)
+    assert res.status == "solved", res.reason
+    assert list(tmp_path.iterdir()) == []
+    assert pddl_planner.run_command is run_command and run_command.__module__ == "unified_planning.engines.pddl_planner"
+    if not warm:  # (the warm driver's requests: tests/test_warm_fast_downward.py)
+        assert len(folders) == 1 and folders[0][0] == folders[0][1] != str(tmp_path)
+
+
+def test_a_command_past_its_timeout_is_killed_with_every_process_it_started(tmp_path):
+    """The engine's session is killed at the time limit, not only the process UP started (Fast Downward's
+    driver starts the translator and the search). Mutation: `_run_in` kills only `proc.pid` (then the
+    call waits for the grandchild: the thread does not end)."""
+    import os
+    import sys
+    import threading
+    import time
+
+    from interlayer_up.planner import _run_in
+
+    cmd = ["sh", "-c", f"{sys.executable} -c 'import time; time.sleep(600)' & echo $! > pid; wait"]
+    answer = []
+    call = threading.Thread(target=lambda: answer.append(_run_in(str(tmp_path), cmd, 1.0)), daemon=True)
+    call.start()
+    call.join(120)
+    pid = int((tmp_path / "pid").read_text())
+    try:
+        assert not call.is_alive()
+        timed_out, _, code = answer[0]
+        assert timed_out and code < 0
+        end = time.monotonic() + 30  # it is reaped by init: wait for that state
+        while _alive(pid) and time.monotonic() < end:
+            time.sleep(0.05)
+        assert not _alive(pid)
+    finally:
+        if _alive(pid):
+            os.kill(pid, 9)
+
+
+def _alive(pid: int) -> bool:
+    from pathlib import Path
+
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split(") ")[1][0] != "Z"
+    except (OSError, IndexError):
+        return False
+
+
+def test_an_engine_whose_solve_no_longer_reaches_the_adapters_is_named(host, monkeypatch):
+    """up-fast-downward's optimal engine adds a goal action, then calls PDDLPlanner's _solve through
+    super(), where the adapter's runs the command in its folder. An engine that calls UP's own directly
+    would run UP's way, unseen. Mutation: `_solve_locked` no longer checks `engine.reached`."""
+    from unified_planning.engines.pddl_planner import PDDLPlanner
+    from up_fast_downward import FastDownwardOptimalPDDLPlanner
+
+    from interlayer_up.compat import UnsupportedUnifiedPlanning
+
+    monkeypatch.setattr(FastDownwardOptimalPDDLPlanner, "_solve",
+                        lambda self, problem, heuristic=None, timeout=None, output_stream=None:
+                        PDDLPlanner._solve(self, problem, heuristic, timeout, output_stream))
+    model = corridor()
+    with pytest.raises(UnsupportedUnifiedPlanning, match=r"^up-fast-downward \d+\.\d+ changed `FastDownwardOptimalPDDLPlanner._solve`: "
+                                                         r"Interlayer's UP adapter supports up-fast-downward >=1.0,<1.1; "
+                                                         r"pin it or update the adapter.$"):
+        host["task_planners"].get("fast-downward-opt").factory({"warm": False}).plan(model, model.init, 30)
+
+
+def test_a_problem_whose_class_cannot_be_swapped_is_named(check_again, monkeypatch):
+    """The adapter gives problems it no longer changes a subclass of Problem (kind computed once, only
+    the true initial atoms written): instances need a __dict__. Mutation: compat.check no longer looks."""
+    import unified_planning.model
+
+    from interlayer_up import compat
+
+    class SlottedProblem:  # what UP would be with __slots__ all the way (its properties still there)
+        __slots__ = ()
+        kind = property(lambda self: None)
+
+    monkeypatch.setattr(unified_planning.model, "Problem", SlottedProblem)
+    compat.check.cache_clear()
+    with pytest.raises(compat.UnsupportedUnifiedPlanning) as changed:
+        compat.check()
+    assert str(changed.value) == _changed("Problem.__dict__")
+
+
+UP_NEEDS_MORE = """
+import logging, sys
+logging.basicConfig(level=logging.WARNING, format="%(message)s")
+from interlayer_up import planner
+
+real = planner._stand_in
+
+def answering_nothing(name, classes):  # as if UP needed names of ConfigSpace the stand-in does not answer
+    stub = real(name, classes)
+    if name == "ConfigSpace":
+        del stub.ConfigurationSpace
+        stub.__getattr__ = lambda attr: (_ for _ in ()).throw(AttributeError(attr))
+    return stub
+
+planner._stand_in = answering_nothing
+planner._quiet_environment()
+import ConfigSpace
+from unified_planning.engines import engine
+print(engine.ConfigurationSpace is ConfigSpace.ConfigurationSpace)
+"""
+
+
+def test_a_unified_planning_that_needs_more_than_the_stand_ins_answer_loads_without_them():
+    """The stand-ins for ConfigSpace and networkx name nothing of UP's: a UP that uses them otherwise
+    loads the real modules (named in a warning), slower but whole. Mutation: `_import_up_without_configspace`
+    no longer catches the failed import (UP's ImportError ends the run)."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", UP_NEEDS_MORE], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["True"]
+    assert out.stderr.startswith("Unified-Planning did not load beside the UP adapter's stand-ins for ConfigSpace and "
+                                 "networkx (ImportError: cannot import name 'ConfigurationSpace' from 'ConfigSpace'")
+    assert out.stderr.rstrip().endswith("; it loads with the real ones instead, a slower start.")
+    assert len(out.stderr.strip().splitlines()) == 1

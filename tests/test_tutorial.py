@@ -55,6 +55,11 @@ def test_the_tutorial_plugin_installs_solves_validates_and_draws(installed, tmp_
     code, _, err = cli("validate", str(out))
     assert code == 0 and "trajectory re-checked by the domain" in err, err
 
+    # The core's own planners (what an install of the core alone has) solve it too.
+    code, _, err = cli("plan", str(src / "sweep.toml"), "--set", "planner.task=bfs", "--set", "planner.motion=interpolate",
+                       "--out", str(tmp_path / "core"))
+    assert code == 0 and "learned (Obstructs b2 cp_b1 b1)" in err, err
+
     # The drawing is the one the domain declared (found by declaration, not by package name).
     monkeypatch.syspath_prepend(str(site))
     importlib.invalidate_caches()

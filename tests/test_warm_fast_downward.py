@@ -1,4 +1,4 @@
-"""Fast Downward's driver in a warm process (adapters/interlayer_up/warm.py, fd_worker.py): the same
+"""Fast Downward's driver in a warm process (adapters/up/interlayer_up/warm.py, fd_worker.py): the same
 answers as a new driver per call, its faults contained and reported in one sentence."""
 import json
 import logging

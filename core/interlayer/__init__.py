@@ -12,7 +12,7 @@ import pluggy
 
 hookimpl = pluggy.HookimplMarker("interlayer")
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 
 def solve(config, overrides=None, **kwargs):

@@ -1,5 +1,22 @@
-"""Built-in components: the interpolating motion planner and the template failure translator."""
+"""Built-in components: the breadth-first task planner, the interpolating motion planner and the template
+failure translator."""
 from . import hookimpl, logic
+
+
+@hookimpl
+def interlayer_register_task_planners(registry):
+    def make(options):
+        from .errors import UserError
+        from .planning import BreadthFirstPlanner
+
+        unknown = sorted(set(options) - {"max_states"})
+        limit = options.get("max_states", 100_000)
+        if unknown or not isinstance(limit, int) or isinstance(limit, bool) or limit < 1:
+            raise UserError(f"[task_planner.bfs] takes max_states, a positive whole number of states to expand "
+                            f"(default 100000); got {', '.join(unknown) or repr(limit)}.")
+        return BreadthFirstPlanner(name="bfs", options=dict(options))
+
+    registry.add("bfs", make, "breadth-first search over the ground actions (no library; small problems, shortest plans)")
 
 
 @hookimpl

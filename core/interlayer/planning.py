@@ -75,3 +75,50 @@ def check_plan(model: TaskModel, state: frozenset, plan) -> str:
             return f"step {i} {step} is not applicable"
         state = model.progress(state, step)
     return "" if model.goal_holds(state) else "the goal does not hold at the end"
+
+
+@dataclass
+class BreadthFirstPlanner(TaskPlanner):
+    """The core's own task planner: breadth-first search over the task model's ground actions, with no
+    library, so that an install of the core alone solves small domains (docs/plugins.md's tutorial);
+    its plans are the shortest. ``max_states`` (expanded states) bounds the work; the time limit only
+    cuts it short."""
+
+    name: str = "bfs"
+
+    def _plan(self, model: TaskModel, state: frozenset, timeout: float):
+        import itertools
+
+        limit = int(self.options.get("max_states", 100_000))
+        deadline = time.monotonic() + timeout
+        steps = []  # (action, task args, ground step), in the model's order
+        for name, action in model.actions.items():
+            for args in itertools.product(*(model.objects_of(t) for _, t in action.parameters)):
+                try:
+                    steps.append((name, args, model.reintroduce(name, args)))
+                except KeyError:  # a dropped parameter without a reference for these arguments
+                    continue
+        parents = {state: None}
+        frontier = [state]
+        expanded = 0
+        while frontier:
+            layer, frontier = frontier, []
+            for current in layer:
+                if model.goal_holds(current):
+                    plan = []
+                    while parents[current] is not None:
+                        current, step = parents[current]
+                        plan.append(step)
+                    return "solved", plan[::-1], "", None
+                if expanded >= limit:
+                    return "incomplete", [], f"breadth-first search expanded max_states = {limit} states", None
+                if time.monotonic() > deadline:
+                    return "timeout", [], "breadth-first search ran out of time", None
+                expanded += 1
+                for name, args, step in steps:
+                    if model.applicable(current, step):
+                        after = model.progress(current, step)
+                        if after not in parents:
+                            parents[after] = (current, (name, args))
+                            frontier.append(after)
+        return "unsolvable", [], f"breadth-first search exhausted all {expanded} reachable states", None

@@ -31,6 +31,9 @@ Failure translators
 Robots
     the robot layer is the adapter ``interlayer_pinocchio`` (``Robot.load("panda")``, ``CollisionWorld``,
     ``solve_ik``, ...: its package docstring); core names it needs are here (``Clearance``, ``Stats``).
+Versions
+    ``API_VERSION`` is the plugin API's version, the core's ``major.minor``: a plugin distribution declares
+    the cores it is made for, ``interlayer>=0.2,<0.3``, and discovery skips it under any other.
 Errors
     raise ``UserError`` with one plain sentence for bad input (the CLI exits 2); any other exception
     from plugin code is reported as that plugin's fault (``PluginFault``).
@@ -39,6 +42,7 @@ from typing import Any, Protocol
 
 from . import hookimpl
 from .abstraction import TaskModel
+from .apiversion import API_VERSION
 from .builtin import translate_by_templates
 from .domain import ActionSpec, DomainSpec, GroundStep, Problem, Skolem
 from .errors import UserError
@@ -67,7 +71,7 @@ class Drawing(Protocol):
 
 
 __all__ = [
-    "hookimpl", "Registry", "UserError", "PluginFault",
+    "API_VERSION", "hookimpl", "Registry", "UserError", "PluginFault",
     "DomainSpec", "ActionSpec", "Skolem", "Problem", "GroundStep", "TaskModel",
     "Geometry", "Candidate", "StepOutcome", "Failure", "Infeasible", "EpochState", "ROBOT_MOVED", "NO_CANDIDATES",
     "Drawing",

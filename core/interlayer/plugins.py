@@ -8,12 +8,16 @@ from typing import Callable
 
 import pluggy
 
-from . import hookspecs
+from . import apiversion, hookspecs
 from .errors import UserError, closest
 from .faults import PluginFault, blame
 
 ENTRY_POINT_GROUP = "interlayer.plugins"
-BUILTIN_DISTRIBUTION = "interlayer"
+# This repository's distributions (the workspace: its development install of all of them); their plugins load
+# first, so that another distribution cannot take their component names.
+FIRST_PARTY = frozenset({"interlayer", "interlayer-workspace", "interlayer-up", "interlayer-ompl", "interlayer-coal",
+                         "interlayer-pinocchio", "interlayer-optim", "interlayer-meshcat", "interlayer-gripper2d",
+                         "interlayer-manip"})
 KINDS = ("task_planners", "motion_planners", "domains", "pose_generators", "failure_translators", "visualizers")
 
 
@@ -113,16 +117,20 @@ class PluginHost:
         if load_entry_points:
             found = importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)
             dists = {}  # each distribution's (name, version), read once: .name and .version each parse its metadata
+            refused = {}  # distribution -> why it is not made for this core (its requirement on interlayer)
             for ep in found:
                 if ep.dist is not None and id(ep.dist) not in dists:
                     meta = ep.dist.metadata
                     dists[id(ep.dist)] = (meta["Name"], meta["Version"])
-            # The built-in plugins first, so their component names cannot be taken by another.
-            eps = sorted(found, key=lambda ep: dists.get(id(ep.dist), ("?",))[0] != BUILTIN_DISTRIBUTION)
+                    refused[id(ep.dist)] = apiversion.mismatch(meta["Name"], meta["Version"], meta.get_all("Requires-Dist"))
+            eps = sorted(found, key=lambda ep: apiversion.normal_name(dists.get(id(ep.dist), ("?",))[0]) not in FIRST_PARTY)
             for ep in eps:
                 if self.pm.get_plugin(ep.name) is not None or ep.name in self.broken:
                     continue
                 dist = dists.get(id(ep.dist), ("?", "?"))
+                if refused.get(id(ep.dist)):
+                    self.broken[ep.name] = refused[id(ep.dist)]
+                    continue
                 try:
                     module = ep.load()
                 except Exception as exc:  # a broken third-party plugin must not break the CLI

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 _HERE = Path(__file__).resolve()
-for _p in (_HERE.parents[2] / "adapters", _HERE.parents[1]):   # adapters/, tests/
+for _p in (_HERE.parents[2] / "adapters" / "meshcat", _HERE.parents[1]):   # the adapter, tests/
     if str(_p) not in sys.path:
         sys.path.insert(0, str(_p))
 
@@ -33,7 +33,7 @@ pytest.importorskip("meshcat")
 from interlayer_meshcat import Scene, add_pinocchio_robot, as_pose, as_rgba  # noqa: E402
 from interlayer_meshcat.page import html_page, scene_embed, scene_iframe, write_page  # noqa: E402
 
-ADAPTERS = Path(__file__).resolve().parents[2] / "adapters"
+ADAPTERS = Path(__file__).resolve().parents[2] / "adapters" / "meshcat"
 PR2_PAGE_BUDGET = 5_000_000
 
 # URLs that may appear in the inlined viewer JS without being fetched: XML

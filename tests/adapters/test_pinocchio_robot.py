@@ -23,7 +23,8 @@ def robot():
 def test_package_import_is_lazy():
     """The CLI imports the package name; that must not pull in pinocchio/coal."""
     code = "import sys, interlayer_pinocchio; print('pinocchio' in sys.modules or 'coal' in sys.modules)"
-    env = dict(os.environ, PYTHONPATH=str(Path(__file__).parents[2] / "adapters"))
+    adapters = Path(__file__).parents[2] / "adapters"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(str(adapters / a) for a in ("pinocchio", "coal")))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
     assert out.stdout.strip() == "False"
 

@@ -54,7 +54,7 @@ def test_pr2_description_reproduces_the_old_pr2():
 
 # -- descriptions: errors name their field ----------------------------------------------------------------
 
-PANDA = Path(__file__).parents[2] / "adapters" / "interlayer_pinocchio" / "robots" / "panda.toml"
+PANDA = Path(__file__).parents[2] / "adapters" / "pinocchio" / "interlayer_pinocchio" / "robots" / "panda.toml"
 
 
 def _variant(tmp_path, old, new, name="robot.toml"):

@@ -42,20 +42,28 @@ def peak_memory_mb() -> float:
 
 
 def versions(host) -> dict:
-    """Python, interlayer, its pinned dependencies and every loaded plugin's distribution."""
+    """Python, interlayer, every loaded plugin's distribution and the dependencies these declare."""
     import importlib.metadata as md
     import re
 
-    out = {"python": platform.python_version()}
-    for req in [("interlayer", "")] + [(re.split(r"[ ;<>=!~\[]", r)[0], "") for r in md.requires("interlayer") or ()
-                                       if "extra ==" not in r]:
+    from .. import __version__
+
+    out = {"python": platform.python_version(), "interlayer": __version__}
+    dists = ["interlayer"] + [dist for dist, version in host.dists.values() if version]
+    for dist in dict.fromkeys(dists):
         try:
-            out[req[0]] = md.version(req[0])
+            out.setdefault(dist, md.version(dist))
+            requires = md.requires(dist) or ()
         except md.PackageNotFoundError:
-            pass
-    for dist, version in host.dists.values():
-        if version:
-            out.setdefault(dist, version)
+            continue
+        for req in requires:
+            name = re.split(r"[ ;<>=!~\[(]", req)[0]
+            if "extra ==" in req or name in out:
+                continue
+            try:
+                out[name] = md.version(name)
+            except md.PackageNotFoundError:
+                pass
     commit = _git_commit()
     if commit:
         out["commit"] = commit

@@ -1,0 +1,285 @@
+"""Pose generators of pybullet-planning problems (move_base folded in, as in Clutter).
+
+* ``pbjson:pick``: Clutter's pick (stable grasp candidates per object pose, fewest objects in the way
+  first).
+* ``pbjson:place``: for ``place`` on the one table of a single-table scene, Clutter's put-down sampler;
+  otherwise a stable placement on the step's surface: a point inside its polygon
+  (the object's whole footprint inside, for tables and regions; its centre over the top of an object
+  it is stacked on), clear of fixed obstacles, other objects and the goal poses of others, and out of
+  the best approaches found so far (Clutter's corridors); for
+  ``place_at_goal`` the goal pose itself (and its symmetric yaws). Then a base pose, IK, the lowering
+  and the retreat; candidates with fewer objects in the way first.
+* ``pbjson:go_home``: the start configuration; ``pbjson:go_to``: the file's base pose goal.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+from interlayer.refine import Candidate
+from interlayer_clutter.samplers import ClutterSampler, fmt, in_corridors, putdown_motion
+from interlayer_manip.scene import REST_GAP, _radius
+from interlayer_manip.state import PRE_GRASP, RES_BASE, pose4, trans, wrap
+
+from .domain import HELD_GRASP
+from .scene import draw_in, inside, polygon_of
+
+
+class PBSampler(ClutterSampler):
+    """Clutter's sampler (its pick and its per-epoch state) with placements on named surfaces."""
+
+    def __init__(self, seed):
+        super().__init__(seed)
+        self.wanted: dict = {}  # object -> grasps (tool_T_object) that fit at its goal pose, after a regrasp was learned
+
+    def __call__(self, problem, step, world, rng):
+        if step.action == "pick":
+            return self.pick(problem, step, world, rng)
+        if step.action == "place_at_goal":
+            return self.place_at_goal(problem, step, world, rng)
+        return self.place_on(problem, step, world, rng)
+
+    def place_on(self, problem, step, world, rng, tries: int = 60):
+        from interlayer_manip.generators import _putdown
+
+        obj, arm, surf = step.args[0], step.args[1], step.args[2]
+        geometry = problem.geometry
+        if world.holder(obj) != arm:
+            return
+        if surf == geometry.layout.extra.get("clutter_table"):
+            # the paper's kind of scene (one axis-aligned table): Clutter's own put-down sampler, which keeps
+            # the target's approach corridors clear
+            yield from self.place(problem, replace(step, args=(obj, arm, step.args[3], *step.args[4:])), world, rng)
+            return
+        found = geometry.surface(surf, world)
+        if found is None:
+            return
+        poly, top = found
+        G = world.held[arm][1]
+        o = geometry.specs[obj]
+        z = top + o.height / 2 + REST_GAP
+        stacked = geometry.surfaces[surf].kind == "top"
+        geometry.sync(world)
+        reserved = [(C[0, 3], C[1, 3], _radius(geometry.specs[k])) for k, C in geometry.layout.extra["goal_centres"].items()
+                    if k != obj]
+        below = geometry.surfaces[surf].body  # the object stacked on (kind "top"): not in the way
+        others = [(Q[0, 3], Q[1, 3], _radius(geometry.specs[k])) for k, Q in world.objects.items() if k not in (obj, below)]
+        corridors = self.corridors_for(world, obj, geometry.layout.target)  # the best approaches found so far
+        r = _radius(o)
+        spots = []
+        for x, y in draw_in(poly, rng, 25 * tries):
+            if not inside(poly, x, y, 0.005 if stacked else min(o.size[0], o.size[1]) / 2):
+                continue
+            if any(math.hypot(x - a, y - b) < r + s + 0.02 for a, b, s in reserved):
+                continue  # another object's goal pose
+            d = min((math.hypot(x - a, y - b) - r - s for a, b, s in others), default=1.0)
+            if d < 0.01:
+                continue
+            spots.append((min(d, 0.25) - in_corridors(x, y, corridors) + 0.1 * rng.random(), float(x), float(y)))
+            if len(spots) >= tries:
+                break
+        spots.sort(key=lambda s: -s[0])
+
+        def pose_at(x, y, heading):
+            P, _ = _putdown(G, x, y, z, heading)
+            if not stacked and not all(inside(poly, px, py) for px, py in polygon_of(_spec_at(o, P))):
+                return None
+            return P
+
+        yield from self._putdowns(problem, world, obj, arm, step.args[4], step.args[5],
+                                  [(x, y, lambda h, x=x, y=y: pose_at(x, y, h), None) for _, x, y in spots], rng)
+
+    def place_at_goal(self, problem, step, world, rng):
+        from interlayer_manip.generators import _yaw
+
+        obj, arm = step.args[0], step.args[1]
+        geometry = problem.geometry
+        if world.holder(obj) != arm:
+            return
+        geometry.sync(world)
+        C = geometry.layout.extra["goal_centres"][obj]
+        period = geometry.symmetry(obj) or math.pi / 2
+        yaw = math.atan2(C[1, 0], C[0, 0])
+        x, y, z = (float(v) for v in C[:3, 3])
+        variants = [pose4(x, y, z, yaw + k * period) for k in range(int(round(2 * math.pi / period)))]
+        G = world.held[arm][1]  # the tool's heading at each variant is fixed: the base stands behind it
+        found = False
+        for cand in self._putdowns(problem, world, obj, arm, step.args[2], step.args[3],
+                                   [(x, y, lambda h, P=P: P, _yaw(P @ np.linalg.inv(G))) for P in variants], rng, per_spot=8):
+            found = True
+            yield cand
+        if not found:
+            fits = self.regrasps(problem, world, obj, arm, variants)
+            if fits:  # refined as a failure of its own kind: the task planner learns (BadGrasp obj goal)
+                self.wanted[obj] = fits
+                kinds = sorted({_kind(np.linalg.inv(F)) for F in fits})
+                yield Candidate((), {HELD_GRASP: f"holding {obj} as it does, the hand hits a fixed obstacle at {obj}'s goal "
+                                                 f"pose; another {' or '.join(kinds)} grasp is clear there"}, "regrasp")
+
+    def regrasps(self, problem, world, obj, arm, variants) -> list:
+        """Grasps (tool_T_object) of ``obj`` other than the held one whose hand, opened as
+        they need, is clear of fixed obstacles at one of the goal pose's ``variants`` and where it
+        retreats from; empty unless the held grasp's hand hits a fixed obstacle at every variant (then
+        only a regrasp can put ``obj`` there, and nothing changes for a put-down that fails otherwise)."""
+        from interlayer_manip.generators import _problem_grasps, grasp_poses
+
+        geometry = problem.geometry
+        G = world.held[arm][1]
+        w = replace(world, held={a: h for a, h in world.held.items() if a != arm})
+
+        def clear(T, grasp):
+            hand = w.with_gripper(arm, geometry.opening(obj, grasp))
+            back = trans(0, 0, PRE_GRASP) @ T if _kind(T) == "top" else T @ trans(-PRE_GRASP, 0, 0)
+            return geometry.hand_free(hand, arm, T, (obj,)) and geometry.hand_free(hand, arm, back, (obj,))
+
+        if any(clear(P @ np.linalg.inv(G), G) for P in variants):
+            return []  # the held grasp fits: the put-down failed for another reason
+        rng = np.random.default_rng(0)
+        out = []
+        for P in variants:
+            for heading in np.linspace(-math.pi, math.pi, 8, endpoint=False):
+                for _, T in grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng, n_side=1):
+                    F = np.linalg.inv(T) @ P
+                    if not any(_same_grasp(geometry, obj, F, H) for H in [G, *out]) and clear(T, F):
+                        out.append(F)
+        return out
+
+    def order_grasps(self, problem, obj, P, grasps):
+        """Once a put-down at obj's goal pose needed a regrasp (see ``regrasps``), the grasps that fit there
+        first (each base's search keeps the first that IK reaches)."""
+        fits = self.wanted.get(obj, ())
+        return sorted(grasps, key=lambda g: not any(_same_grasp(problem.geometry, obj, np.linalg.inv(g[1]) @ P, F)
+                                                    for F in fits))
+
+    def _putdowns(self, problem, world, obj, arm, bp_ref, pd_ref, spots, rng, limit: int = 4, per_spot: int = 4):
+        """Candidates (base, lowering, retreat) for the object poses ``spots`` offers: (x, y, pose(heading),
+        the tool's heading if the pose fixes it) with heading the direction from the base to (x, y);
+        fewest objects in the way first."""
+        geometry = problem.geometry
+
+        overlap = {}  # the objects where the last pose offered stands (putdown_motion asks once per try)
+
+        def clear_of_fixed(pose_at):
+            def at(heading):
+                P = pose_at(heading)
+                if P is None:
+                    return None
+                with geometry.stats.timer("collision_checking"):
+                    overlap["hits"] = geometry.cw.objects_overlap(obj, P)
+                return None if overlap["hits"] & geometry.fixed else P
+            return at
+
+        found = []
+        for rank, (x, y, pose_at, heading) in enumerate(spots):
+            if rank >= 3 * limit and found:
+                break  # past the best spots, only search on while nothing at all was found
+            for _ in range(per_spot if rank < 3 * limit else 2 * per_spot):
+                tried = putdown_motion(geometry, world, arm, x, y, clear_of_fixed(pose_at), rng, heading)
+                if tried is None:
+                    continue
+                base, P, T, lower, back, hit, sweep = tried
+                hit |= overlap["hits"]  # objects where it is put
+                found.append(((len(hit), len(sweep)), rank, base, x, y, P, T, lower, back))
+                break
+            if len(found) >= limit or (found and found[-1][0] == (0, 0) and len(found) >= 2):
+                break
+        found.sort(key=lambda f: (f[0], f[1]))
+        for nhit, _, base, x, y, P, T, lower, back in found:
+            yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])),
+                            {bp_ref: list(base), pd_ref: T.tolist(), "tloc": (obj, P), "object_pose": P.tolist()},
+                            f"{obj} at {fmt((x, y))} from base {fmt(base)} ({nhit[0]} + {nhit[1]} objects in the way)")
+
+
+def go_home(problem, step, world, rng):
+    """The one way home: the start base pose (the arms' start joints are the geometry's)."""
+    yield Candidate((tuple(problem.geometry.layout.base),), {}, "back to the start configuration")
+
+
+def go_to(problem, step, world, rng):
+    """The one base pose of the file's goal_config [x, y, yaw]."""
+    x, y, yaw = problem.geometry.goals["base"]
+    base = (x, y, wrap(yaw))  # the files write pi, outside the planner's [-pi, pi) yaw bounds
+    yield Candidate((base,), {}, f"to the goal base pose {fmt(base)}")
+
+
+def _kind(T) -> str:
+    """The kind of a tool pose (or of object_T_tool): "top" when its x axis points down."""
+    return "top" if abs(T[2, 0]) > 0.7 else "side"
+
+
+def _same_grasp(geometry, obj, F, H) -> bool:
+    """Grasps F and H (tool_T_object) hold ``obj`` the same way: their approach axes and closing lines agree
+    in the object's frame (a cylinder's side grasps are all one, whatever their yaw)."""
+    A, B = np.linalg.inv(F)[:3, :3], np.linalg.inv(H)[:3, :3]
+    if geometry.specs[obj].shape == "cylinder" and _kind(np.linalg.inv(F)) == _kind(np.linalg.inv(H)) == "side":
+        return True
+    # the same approach axis, and the fingers closing along the same line (a top grasp may turn 90 degrees)
+    return float(A[:, 0] @ B[:, 0]) > math.cos(0.5) and abs(float(A[:, 1] @ B[:, 1])) > math.cos(0.5)
+
+
+def _spec_at(spec, P):
+    return replace(spec, pose=(float(P[0, 3]), float(P[1, 3]), float(P[2, 3]), math.atan2(P[1, 0], P[0, 0])))
+
+
+PUSH_LENGTHS = (0.3, 0.6, 0.9, 1.2)  # m: how far a push moves its object
+
+
+def push(problem, step, world, rng):
+    """Pushes of floor obstacle ``f``: the base faces one of f's sides (in f's own frame), drives up to it
+    and on straight for one of PUSH_LENGTHS, f moving ahead of it. Offered only where the base can stand
+    and reach (the loader's reachable area), with the robot at the start and both at the end clear of fixed
+    obstacles and neither running into one on the way (checked coarsely: the refinement checks the line
+    at the validator's resolution). Ranked by the loader's flood fill of the base (a disk) among the fixed
+    shapes and the floor obstacles where they stand: first those whose start the base reaches now, then
+    those after which the base reaches the most goals of the drives floor obstacles were found blocking,
+    then longer ones."""
+    from .loader import reachable_area
+    from .world import PUSH_GAP, base4
+
+    geometry = problem.geometry
+    obj = step.args[0]
+    if obj not in world.objects:
+        return
+    w = geometry.tucked(world)
+    P = w.objects[obj]
+    yaw = math.atan2(P[1, 0], P[0, 0])
+    area = geometry.layout.extra.get("base_area")
+    # where the base can drive now, the floor obstacles where they stand: pushes from there first
+    others = [*geometry.layout.fixed, *(_spec_at(geometry.specs[o], Q) for o, Q in w.objects.items()
+                                          if o in geometry.floor_objects and o != obj)]
+    limits = geometry.layout.extra["base_limits"]
+    now = reachable_area([*others, _spec_at(geometry.specs[obj], P)], w.base, *limits)
+    goals = list(dict.fromkeys(to for _, to in geometry.blocked_drives))
+    found = []
+    for k in range(4):
+        heading = wrap(yaw + k * math.pi / 2)
+        d = geometry.contact_distance(w, obj, heading)
+        if d is None:
+            continue
+        d += PUSH_GAP
+        u = np.array([math.cos(heading), math.sin(heading)])
+        start = (float(P[0, 3] - d * u[0]), float(P[1, 3] - d * u[1]), heading)
+        if area is not None and not area(*start[:2]):
+            continue
+        if geometry.in_collision(replace(w, base=start), movables=False):
+            continue
+        B = np.linalg.inv(base4(start)) @ P
+        for length in PUSH_LENGTHS:
+            end = (start[0] + length * u[0], start[1] + length * u[1], heading)
+            E = base4(end) @ B
+            if (area is not None and not area(*end[:2])) or not geometry.base_space.within_bounds(np.asarray(end)):
+                continue
+            with geometry.stats.timer("collision_checking"):
+                if geometry.cw.objects_overlap(obj, E) & geometry.fixed:
+                    continue
+            if geometry.in_collision(replace(w, base=end), movables=False) or \
+                    geometry.push_line(w, obj, start, end, fine=RES_BASE * 2, movables=False)[1]:
+                continue  # the robot or the object would run into a wall
+            after = reachable_area([*others, _spec_at(geometry.specs[obj], E)], end, *limits)
+            blocked = sum(after is not None and not after(*g) for g in goals)  # goals of blocked drives still cut off
+            found.append((now is not None and not now(*start[:2]), blocked, -length, rng.random(), start, end))
+    found.sort(key=lambda c: c[:4])
+    for _, _, length, _, start, end in found:
+        yield Candidate((start, end), {}, f"push {obj} {-length:.1f} m from base {fmt(start)}")
+
