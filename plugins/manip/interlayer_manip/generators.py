@@ -84,15 +84,20 @@ def check_graspable(problem, name):
     """Raise Infeasible when no grasp of the allowed kinds fits the gripper and the goal needs the object."""
     geometry = problem.geometry
     o = geometry.specs[name]
-    kinds = _problem_grasps(problem, name)
-    rng = np.random.default_rng(0)
-    found = any(grasp_poses(geometry, name, pose4(*o.pose), h, kinds, rng, n_side=1)
-                for h in np.linspace(-math.pi, math.pi, 8, endpoint=False))
+    found = fits_gripper(geometry, name, _problem_grasps(problem, name))
     if not found and goal_needs(problem, name):
         width = 2 * o.size[0] if o.shape == "cylinder" else min(o.size[0], o.size[1])
         raise Infeasible(f"{name} is {width:.3f} m wide but the {geometry.robot.description.name} gripper opens only "
                          f"{geometry.robot.max_gripper_opening:.3f} m: no grasp exists")
     return found
+
+
+def fits_gripper(geometry, name, kinds) -> bool:
+    """Some grasp of ``kinds`` of object ``name`` fits the gripper's opening (from any side)."""
+    o = geometry.specs[name]
+    rng = np.random.default_rng(0)
+    return any(grasp_poses(geometry, name, pose4(*o.pose), h, kinds, rng, n_side=1)
+               for h in np.linspace(-math.pi, math.pi, 8, endpoint=False))
 
 
 def goal_needs(problem, obj) -> bool:

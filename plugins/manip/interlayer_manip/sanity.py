@@ -44,6 +44,27 @@ def _overlapping_pairs(boxes: np.ndarray, movable: np.ndarray) -> list:
     return pairs
 
 
+def _boxes(specs) -> np.ndarray:
+    """Rows (xmin, xmax, ymin, ymax, zmin, zmax) of the axis-aligned boxes around ``specs``."""
+    centre = np.array([o.pose[:3] for o in specs], float)
+    half = np.array([_extents(o) for o in specs], float)
+    return np.stack([centre[:, 0] - half[:, 0], centre[:, 0] + half[:, 0], centre[:, 1] - half[:, 1],
+                     centre[:, 1] + half[:, 1], centre[:, 2] - half[:, 2], centre[:, 2] + half[:, 2]], axis=1)
+
+
+def penetrations(specs, movable, boxes=None) -> list:
+    """(i, j, depth in m) of the pairs of ``specs`` (at least one ``movable``) whose shapes overlap."""
+    import coal
+
+    boxes = _boxes(specs) if boxes is None else boxes
+    request = coal.DistanceRequest()
+    shapes, out = {}, []
+    for i, j in _overlapping_pairs(boxes, np.asarray(movable)):
+        a, b = (shapes.setdefault(k, _coal(specs[k])) for k in (i, j))
+        out.append((i, j, -coal.distance(a[0], a[1], b[0], b[1], request, coal.DistanceResult())))
+    return out
+
+
 def scene_issues(fixed, objects, floors=(), riders=()) -> list[tuple[str, str]]:
     """[("error" | "warning", sentence)]: interpenetrating pairs (a movable with a movable or a fixed
     shape) and objects under the ground are errors; floating objects warnings. ``floors`` support
@@ -52,19 +73,10 @@ def scene_issues(fixed, objects, floors=(), riders=()) -> list[tuple[str, str]]:
     specs = [*fixed, *objects]
     if not objects:
         return []
-    centre = np.array([o.pose[:3] for o in specs], float)
-    half = np.array([_extents(o) for o in specs], float)
-    boxes = np.stack([centre[:, 0] - half[:, 0], centre[:, 0] + half[:, 0], centre[:, 1] - half[:, 1],
-                      centre[:, 1] + half[:, 1], centre[:, 2] - half[:, 2], centre[:, 2] + half[:, 2]], axis=1)
+    boxes = _boxes(specs)
     movable = np.array([False] * len(fixed) + [True] * len(objects))
     issues, stuck = [], set()  # stuck: objects in another one (their support is not the question)
-    import coal
-
-    request = coal.DistanceRequest()
-    shapes = {}
-    for i, j in _overlapping_pairs(boxes, movable):
-        a, b = (shapes.setdefault(k, _coal(specs[k])) for k in (i, j))
-        depth = -coal.distance(a[0], a[1], b[0], b[1], request, coal.DistanceResult())
+    for i, j, depth in penetrations(specs, movable, boxes):
         if depth > PENETRATION:
             stuck |= {i, j}
             first, second = (specs[j], specs[i]) if movable[j] and not movable[i] else (specs[i], specs[j])

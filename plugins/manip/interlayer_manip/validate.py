@@ -29,7 +29,8 @@ def validate_trajectory(geometry, plan, trajectory, rules=None) -> list[str]:
     """``rules``: a domain's additions (a module or object), each optional: ``event(geometry, world, seg,
     at) -> (world, why)`` for segment kinds this module does not know, ``motion(geometry, world, seg, at)
     -> why`` before each motion, ``rests(geometry, world, obj, P) -> why`` in place of "resting upright on
-    the table", and ``goal(geometry, world) -> [why]`` in place of this module's goal check."""
+    the table", and ``goal(geometry, world) -> [why]`` in place of this module's goal check; ``kinds``: segment
+    kinds that ``event`` checks even when they carry points (a domain's own motions, e.g. a push)."""
     errors: list[str] = []
     rule = lambda name: getattr(rules, name, None)  # noqa: E731
     robot = geometry.robot
@@ -46,7 +47,11 @@ def validate_trajectory(geometry, plan, trajectory, rules=None) -> list[str]:
             why = rule("motion")(geometry, world, seg, at) if "points" in seg and rule("motion") else None
             if why:
                 return errors + [why]
-            if "points" in seg and seg.get("body"):
+            if kind in (getattr(rules, "kinds", None) or ()):
+                world, why = rule("event")(geometry, world, seg, at)
+                if why:
+                    return errors + [why]
+            elif "points" in seg and seg.get("body"):
                 world, why = _check_pull(geometry, world, seg, at)
                 if why:
                     return errors + [why]

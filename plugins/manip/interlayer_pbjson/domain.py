@@ -44,7 +44,8 @@ SLOTS = 2
 HELD_GRASP = "held_grasp"  # the failure kind of a put-down at the goal that another grasp could do (BadGrasp)
 
 
-def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home: bool, go_to: bool = False) -> DomainSpec:
+def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home: bool, go_to: bool = False,
+                  floor: bool = False) -> DomainSpec:
     preds = {
         "HandEmpty": ("arm",), "Other": ("arm", "arm"), "Holding": ("obj", "arm"), "Resting": ("obj",),
         "On": ("obj", "surf"),
@@ -52,11 +53,15 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
         "IsBPFPD": ("bpose", "obj", "arm", "surf", "slot"), "IsGPFPD": ("pdpose", "obj", "arm", "surf", "slot"),
         "Obstructs": ("obj", "gpose"), "PDObstructs": ("obj", "pdpose"), "NoGrasp": ("gpose",),
     }
+    # with floor obstacles, ``item``s are what the gripper can hold (pose references exist for them only),
+    # ``floor`` obstacles the ones it cannot; both are ``obj``s (they obstruct alike); floor obstacles of
+    # either kind are ``Pushable`` (an item: until it is picked)
+    it = "item" if floor else "obj"
     skolems = [
-        Skolem("bpfg", ("obj", "arm"), "bpose", "IsBPFG", "a base pose from which arm can grasp obj"),
-        Skolem("gpfg", ("obj", "arm"), "gpose", "IsGPFG", "a gripper pose grasping obj (with pre-grasp and raise)"),
-        Skolem("bpfpd", ("obj", "arm", "surf", "slot"), "bpose", "IsBPFPD", "a base pose from which arm can put obj on surf"),
-        Skolem("gpfpd", ("obj", "arm", "surf", "slot"), "pdpose", "IsGPFPD", "a gripper pose putting obj on a stable spot of surf"),
+        Skolem("bpfg", (it, "arm"), "bpose", "IsBPFG", "a base pose from which arm can grasp obj"),
+        Skolem("gpfg", (it, "arm"), "gpose", "IsGPFG", "a gripper pose grasping obj (with pre-grasp and raise)"),
+        Skolem("bpfpd", (it, "arm", "surf", "slot"), "bpose", "IsBPFPD", "a base pose from which arm can put obj on surf"),
+        Skolem("gpfpd", (it, "arm", "surf", "slot"), "pdpose", "IsGPFPD", "a gripper pose putting obj on a stable spot of surf"),
     ]
     pick_pre = ["(HandEmpty ?arm)", "(Resting ?o)", "(IsBPFG ?bp ?o ?arm)", "(IsGPFG ?gp ?o ?arm)", "(Other ?arm ?arm2)",
                 "(IsGPFG ?gp2 ?o ?arm2)", "(forall (?b - obj) (not (Obstructs ?b ?gp)))", "(not (NoGrasp ?gp))"]
@@ -83,11 +88,19 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
         preds[done] = ()
         pick_pre.append(f"(not ({done}))")
         place_pre.append(f"(not ({done}))")
+    if floor:  # obstacles standing on the floor (floor_object_names): what blocks the base is learned from drives
+        preds.update({"BaseObstructs": ("obj", "bpose"), "FinalClear": ("obj",), "PushBlocked": ("obj", "obj"),
+                      "Pushable": ("obj",)})
+        pick_pre.append("(forall (?f - obj) (not (BaseObstructs ?f ?bp)))")
+        place_pre.append("(forall (?f - obj) (not (BaseObstructs ?f ?bp)))")
+        pick_eff += ["(forall (?p - bpose) (not (BaseObstructs ?o ?p)))", "(FinalClear ?o)",
+                     "(forall (?x - obj) (not (PushBlocked ?o ?x)))", "(not (Pushable ?o))"]
+    drive_learn = {"base_obstruction": ("(BaseObstructs ?blocker ?bp)",)} if floor else {}
     if goal_poses:
         preds.update({"AtGoalPose": ("obj",), "HasGoalPose": ("obj",), "IsBPFGP": ("bpose", "obj", "arm"),
                       "IsGPFGP": ("pdpose", "obj", "arm")})
-        skolems += [Skolem("bpfgp", ("obj", "arm"), "bpose", "IsBPFGP", "a base pose from which arm can put obj at its goal pose"),
-                    Skolem("gpfgp", ("obj", "arm"), "pdpose", "IsGPFGP", "a gripper pose putting obj at its goal pose")]
+        skolems += [Skolem("bpfgp", (it, "arm"), "bpose", "IsBPFGP", "a base pose from which arm can put obj at its goal pose"),
+                    Skolem("gpfgp", (it, "arm"), "pdpose", "IsGPFGP", "a gripper pose putting obj at its goal pose")]
         preds.update({"Occupies": ("obj", "obj"), "BadGrasp": ("obj", "pdpose")})
         pick_eff += ["(not (AtGoalPose ?o))", "(forall (?x - obj) (not (Occupies ?o ?x)))",
                      "(forall (?p - pdpose) (not (BadGrasp ?o ?p)))"]  # a new grasp
@@ -96,37 +109,55 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
             name="pick",
             # ?gp2: the other arm's grasp reference of ?o (as in Clutter's pick: forgotten by the effect,
             # learned by a failure)
-            parameters=(("?o", "obj"), ("?arm", "arm"), ("?arm2", "arm"), ("?bp", "bpose"), ("?gp", "gpose"),
+            parameters=(("?o", it), ("?arm", "arm"), ("?arm2", "arm"), ("?bp", "bpose"), ("?gp", "gpose"),
                         ("?gp2", "gpose")),
             precondition=f"(and {' '.join(pick_pre)})", effect=f"(and {' '.join(pick_eff)})",
             learn={"obstruction": ("(Obstructs ?blocker ?gp)", "(Obstructs ?blocker2 ?gp2)"),
-                   NO_CANDIDATES: ("(NoGrasp ?gp)",)}, pose_generator="pbjson:pick"),
+                   NO_CANDIDATES: ("(NoGrasp ?gp)",), **drive_learn}, pose_generator="pbjson:pick"),
         ActionSpec(
             name="place",
-            parameters=(("?o", "obj"), ("?arm", "arm"), ("?s", "surf"), ("?sl", "slot"), ("?bp", "bpose"), ("?pd", "pdpose")),
+            parameters=(("?o", it), ("?arm", "arm"), ("?s", "surf"), ("?sl", "slot"), ("?bp", "bpose"), ("?pd", "pdpose")),
             precondition=f"(and {' '.join(place_pre)})", effect=f"(and {' '.join(place_eff)})",
-            learn={"obstruction": ("(PDObstructs ?blocker ?pd)",)}, pose_generator="pbjson:place"),
+            learn={"obstruction": ("(PDObstructs ?blocker ?pd)",), **drive_learn}, pose_generator="pbjson:place"),
     ]
     if goal_poses:
         actions.append(ActionSpec(
             name="place_at_goal",
-            parameters=(("?o", "obj"), ("?arm", "arm"), ("?bp", "bpose"), ("?pd", "pdpose")),
+            parameters=(("?o", it), ("?arm", "arm"), ("?bp", "bpose"), ("?pd", "pdpose")),
             precondition=f"""(and (Holding ?o ?arm) (HasGoalPose ?o) (IsBPFGP ?bp ?o ?arm) (IsGPFGP ?pd ?o ?arm)
                                   (forall (?b - obj) (and (not (PDObstructs ?b ?pd)) (not (Occupies ?b ?o))))
                                   (not (BadGrasp ?o ?pd))
-                                  {f'(not ({done}))' if done else ''})""",
+                                  {f'(not ({done}))' if done else ''}
+                                  {'(forall (?f - obj) (not (BaseObstructs ?f ?bp)))' if floor else ''})""",
             effect="(and (not (Holding ?o ?arm)) (HandEmpty ?arm) (Resting ?o) (AtGoalPose ?o))",
-            learn={"obstruction": ("(PDObstructs ?blocker ?pd)",), HELD_GRASP: ("(BadGrasp ?o ?pd)",)},
+            learn={"obstruction": ("(PDObstructs ?blocker ?pd)",), HELD_GRASP: ("(BadGrasp ?o ?pd)",), **drive_learn},
             pose_generator="pbjson:place"))
     if done:
-        actions.append(ActionSpec(name=final, parameters=(), precondition=f"(not ({done}))", effect=f"({done})",
+        clear = " (forall (?f - obj) (FinalClear ?f))" if floor else ""
+        actions.append(ActionSpec(name=final, parameters=(), precondition=f"(and (not ({done})){clear})", effect=f"({done})",
+                                  learn={"base_obstruction": ("(not (FinalClear ?blocker))",)} if floor else {},
                                   pose_generator=f"pbjson:{final}"))
+    if floor:
+        # the base pushes ?f along a straight line (the pose generator picks it): whatever ?f blocked, it no
+        # longer does; what it blocks where it ends up is learned again from the failures it causes there
+        actions.append(ActionSpec(
+            name="push", parameters=(("?f", "obj"),),
+            precondition=f"(and (Pushable ?f) (Resting ?f) (forall (?b - obj) (not (PushBlocked ?b ?f))){f' (not ({done}))' if done else ''})",
+            effect="""(and (forall (?p - bpose) (not (BaseObstructs ?f ?p))) (FinalClear ?f)
+                          (forall (?p - gpose) (not (Obstructs ?f ?p))) (forall (?p - pdpose) (not (PDObstructs ?f ?p)))
+                          (forall (?x - obj) (not (PushBlocked ?f ?x))))""",
+            # no push of ?f: every side of it is against a wall or out of the base's reach (fixed obstacles
+            # only: true while ?f stands there, forgotten at a reset)
+            learn={"base_obstruction": ("(PushBlocked ?blocker ?f)",), "obstruction": ("(PushBlocked ?blocker ?f)",),
+                   NO_CANDIDATES: ("(not (Pushable ?f))",)},
+            pose_generator="pbjson:push"))
     return DomainSpec(
         name="pr2-pbjson",
-        types={"obj": None, "arm": None, "surf": None, "slot": None},
+        types={"obj": None, "arm": None, "surf": None, "slot": None, **({"item": "obj", "floor": "obj"} if floor else {})},
         continuous_types=("bpose", "gpose", "pdpose"),
         predicates=preds,
         skolems=tuple(skolems),
-        geometric=("Obstructs", "PDObstructs", "NoGrasp", *(("BadGrasp",) if goal_poses else ())),
+        geometric=("Obstructs", "PDObstructs", "NoGrasp", *(("BadGrasp",) if goal_poses else ()),
+                   *(("BaseObstructs",) if floor else ())),
         actions=tuple(actions),
     )

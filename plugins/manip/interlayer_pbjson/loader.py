@@ -57,7 +57,8 @@ def load_pybullet_json(path, data, params, seed) -> Problem:
 def task_symbols():
     """The symbols of this encoding's own objects (the arms, the slots) taken first, so that a file's
     names (``left``, ``s1``, ``On``, ``table 1``...) get symbols of their own (interlayer.names)."""
-    symbols = Names.for_domain(pbjson_domain(tops=True, goal_poses=True, sinks=True, stoves=True, home=True, go_to=True))
+    symbols = Names.for_domain(pbjson_domain(tops=True, goal_poses=True, sinks=True, stoves=True, home=True, go_to=True,
+                                           floor=True))
     for name in (*ARMS, *SLOT_NAMES):
         if symbols.add(name) != name:
             raise AssertionError(f"the encoding's own object {name!r} is not a free symbol")
@@ -186,7 +187,8 @@ def build_problem(scene, source, symbols) -> Problem:
              "surfaces": spots, "colors": scene.colors, "offsets": scene.offsets, "arms": scene.arms, "goals": goals,
              "clutter_table": clutter_table, "table_frame": table_frame, "base_area": reach, "camera": scene.camera,
              "notes": scene.notes, "floors": [o for o in scene.fixed if o.name in scene.floors],  # drawn, not collided with
-             "body_of": scene.body_of, "labels": symbols.labels}
+             "body_of": scene.body_of, "labels": symbols.labels, "floor_objects": list(scene.floor_objects),
+             "floor_fixed": list(scene.floor_fixed)}
     # the target (Clutter's samplers search harder for its grasps and keep put-downs out of its way): the
     # object to hold, else the one object a goal places
     placed = list(dict.fromkeys([*(m for o in goals["on"] for m in goals["members"][o]), *goals["stackings"], *goals["poses"]]))
@@ -200,13 +202,19 @@ def build_problem(scene, source, symbols) -> Problem:
     slots = list(SLOT_NAMES)
     kinds = {s.kind for s in spots.values()}
     domain = pbjson_domain(tops="top" in kinds, goal_poses=bool(goals["poses"]), sinks="sink" in kinds,
-                           stoves="stove" in kinds, home=goals["home"], go_to=bool(goals["base"]))
-    objects = {o: "obj" for o in names}
+                           stoves="stove" in kinds, home=goals["home"], go_to=bool(goals["base"]),
+                           floor=bool(scene.floor_objects))
+    # a floor obstacle the gripper can hold is picked like any object (an item) or pushed; any other one is pushed
+    handled = floor_handling(geometry)
+    extra["floor_handling"] = handled
+    objects = {o: "floor" if handled.get(o) == "push" else "item" if handled else "obj" for o in names}
     objects.update({a: "arm" for a in ARMS})
     objects.update({s: "slot" for s in slots})
     objects.update({s: "surf" for s in spots})
     init = {("HandEmpty", a) for a in ARMS} | {("Other", "left", "right"), ("Other", "right", "left")}
     init |= {("Resting", o) for o in names}
+    init |= {("Pushable", o) for o in handled}
+    init |= {("FinalClear", o) for o in names} if handled else set()  # nothing blocks the final drive until it fails
     world = geometry.initial_world()
     if geometry.in_collision(world):
         pairs = sorted({b for a, b in geometry.cw.collision_pairs(geometry.sync(world))})
@@ -240,6 +248,16 @@ def build_problem(scene, source, symbols) -> Problem:
     source = {**source, "layout": layout.to_json()}
     return Problem(domain, objects, frozenset(init), f"(and {' '.join(parts)})", geometry, source, name=scene.name,
                    labels=symbols.labels)
+
+
+def floor_handling(geometry) -> dict:
+    """Floor obstacle -> "pick" when a grasp of the file's kinds fits the gripper (the width proof of every
+    object; it may be pushed too, e.g. where the arm cannot reach it), else "push" (the base pushes it; the
+    files give no masses, so size is the only limit)."""
+    from interlayer_manip.generators import fits_gripper
+
+    kinds = geometry.layout.grasps
+    return {o: "pick" if fits_gripper(geometry, o, kinds) else "push" for o in geometry.layout.extra["floor_objects"]}
 
 
 def _any(atoms):

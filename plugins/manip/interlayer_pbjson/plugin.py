@@ -22,3 +22,5 @@ def interlayer_register_pose_generators(registry):
                                             "or the goal pose, + base pose, by IK")
     registry.add("pbjson:go_home", samplers + "go_home", "pybullet-planning files: the robot's start configuration (goal_config)")
     registry.add("pbjson:go_to", samplers + "go_to", "pybullet-planning files: the base pose goal (goal_config: [x, y, yaw])")
+    registry.add("pbjson:push", samplers + "push", "pybullet-planning files: the base pushes a floor obstacle straight "
+                                                   "ahead (a side of it, a length), off the drives it blocked")

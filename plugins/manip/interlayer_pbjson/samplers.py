@@ -20,7 +20,7 @@ import numpy as np
 from interlayer.refine import Candidate
 from interlayer_clutter.samplers import ClutterSampler, fmt, in_corridors, putdown_motion
 from interlayer_manip.scene import REST_GAP, _radius
-from interlayer_manip.state import PRE_GRASP, pose4, trans, wrap
+from interlayer_manip.state import PRE_GRASP, RES_BASE, pose4, trans, wrap
 
 from .domain import HELD_GRASP
 from .scene import draw_in, inside, polygon_of
@@ -220,3 +220,66 @@ def _same_grasp(geometry, obj, F, H) -> bool:
 
 def _spec_at(spec, P):
     return replace(spec, pose=(float(P[0, 3]), float(P[1, 3]), float(P[2, 3]), math.atan2(P[1, 0], P[0, 0])))
+
+
+PUSH_LENGTHS = (0.3, 0.6, 0.9, 1.2)  # m: how far a push moves its object
+
+
+def push(problem, step, world, rng):
+    """Pushes of floor obstacle ``f``: the base faces one of f's sides (in f's own frame), drives up to it
+    and on straight for one of PUSH_LENGTHS, f moving ahead of it. Offered only where the base can stand
+    and reach (the loader's reachable area), with the robot at the start and both at the end clear of fixed
+    obstacles and neither running into one on the way (checked coarsely: the refinement checks the line
+    at the validator's resolution). Ranked by the loader's flood fill of the base (a disk) among the fixed
+    shapes and the floor obstacles where they stand: first those whose start the base reaches now, then
+    those after which the base reaches the most goals of the drives floor obstacles were found blocking,
+    then longer ones."""
+    from .loader import reachable_area
+    from .world import PUSH_GAP, base4
+
+    geometry = problem.geometry
+    obj = step.args[0]
+    if obj not in world.objects:
+        return
+    w = geometry.tucked(world)
+    P = w.objects[obj]
+    yaw = math.atan2(P[1, 0], P[0, 0])
+    area = geometry.layout.extra.get("base_area")
+    # where the base can drive now, the floor obstacles where they stand: pushes from there first
+    others = [*geometry.layout.fixed, *(_spec_at(geometry.specs[o], Q) for o, Q in w.objects.items()
+                                          if o in geometry.floor_objects and o != obj)]
+    limits = geometry.layout.extra["base_limits"]
+    now = reachable_area([*others, _spec_at(geometry.specs[obj], P)], w.base, *limits)
+    goals = list(dict.fromkeys(to for _, to in geometry.blocked_drives))
+    found = []
+    for k in range(4):
+        heading = wrap(yaw + k * math.pi / 2)
+        d = geometry.contact_distance(w, obj, heading)
+        if d is None:
+            continue
+        d += PUSH_GAP
+        u = np.array([math.cos(heading), math.sin(heading)])
+        start = (float(P[0, 3] - d * u[0]), float(P[1, 3] - d * u[1]), heading)
+        if area is not None and not area(*start[:2]):
+            continue
+        if geometry.in_collision(replace(w, base=start), movables=False):
+            continue
+        B = np.linalg.inv(base4(start)) @ P
+        for length in PUSH_LENGTHS:
+            end = (start[0] + length * u[0], start[1] + length * u[1], heading)
+            E = base4(end) @ B
+            if (area is not None and not area(*end[:2])) or not geometry.base_space.within_bounds(np.asarray(end)):
+                continue
+            with geometry.stats.timer("collision_checking"):
+                if geometry.cw.objects_overlap(obj, E) & geometry.fixed:
+                    continue
+            if geometry.in_collision(replace(w, base=end), movables=False) or \
+                    geometry.push_line(w, obj, start, end, fine=RES_BASE * 2, movables=False)[1]:
+                continue  # the robot or the object would run into a wall
+            after = reachable_area([*others, _spec_at(geometry.specs[obj], E)], end, *limits)
+            blocked = sum(after is not None and not after(*g) for g in goals)  # goals of blocked drives still cut off
+            found.append((now is not None and not now(*start[:2]), blocked, -length, rng.random(), start, end))
+    found.sort(key=lambda c: c[:4])
+    for _, _, length, _, start, end in found:
+        yield Candidate((start, end), {}, f"push {obj} {-length:.1f} m from base {fmt(start)}")
+

@@ -53,6 +53,8 @@ class Scene:
     notes: list = field(default_factory=list)  # approximations made, shown by `interlayer check`
     camera: tuple | None = None  # where the file's camera looks from (relative to the scene's centre)
     body_of: dict = field(default_factory=dict)  # fixed spec -> its body
+    floor_objects: list = field(default_factory=list)  # movable objects standing on the floor (floor_object_names)
+    floor_fixed: list = field(default_factory=list)  # (name, fixed shape, depth) of those standing in a fixed body
 
 
 def rotation(q, where) -> np.ndarray:
@@ -282,11 +284,13 @@ def read_scene(data, label, symbols) -> Scene:
         raise UserError(f"bodies: the name {dup[0]!r} is used by more than one body; body names must be unique.")
     known = set(names)
     movable = _names(task, "object_names")
+    on_floor = [n for n in _names(task, "floor_object_names") if n not in movable]
+    movable = movable + on_floor  # obstacles on the floor are movable too (pushed or picked: loader.py)
     for key in ("object_names", "table_names", "sink_names", "stove_names", "floor_object_names"):
         for n in _names(task, key):
             if n not in known:
                 raise UserError(f"task.{key} names {n!r}, which is not a body of the file.")
-    if not movable and not isinstance(task.get("goal_config"), list):  # a drive alone needs none (trivial_namo)
+    if not _names(task, "object_names") and not isinstance(task.get("goal_config"), list):  # a drive alone needs none (trivial_namo)
         raise UserError("task.object_names is empty: the problem has no movable object.")
     sym = {n: symbols.add(n) for n in names}  # in the file's order: the same file, the same symbols
     role = {n: k for k in ("table", "sink", "stove") for n in _names(task, f"{k}_names")}
@@ -363,6 +367,15 @@ def read_scene(data, label, symbols) -> Scene:
     for n in surfaces:
         if n in specs:
             raise UserError(f"task: {n!r} is both a movable object and a surface.")
+    on_floor, floor_fixed = [sym[n] for n in on_floor], []
+    for name, wall, depth in embedded([o for o in fixed if o.name not in floors], [o for o in objects if o.name in on_floor]):
+        # a floor obstacle standing in a wall is part of it (decision_wall_namo_3): no push gets it out
+        spec = next(o for o in objects if o.name == name)
+        objects.remove(spec)
+        on_floor.remove(name)
+        fixed.append(ObjectSpec(spec.name, spec.shape, spec.size, spec.pose, movable=False))
+        body_of[spec.name] = name
+        floor_fixed.append((name, body_of.get(wall, wall), depth))
     robots = data["robots"]
     if not isinstance(robots, list) or len(robots) != 1:
         raise UserError(f"robots: exactly one robot (a PR2) is supported, got {len(robots) if isinstance(robots, list) else robots!r}.")
@@ -375,7 +388,23 @@ def read_scene(data, label, symbols) -> Scene:
         centre = np.mean([o.pose[:3] for o in fixed + objects], axis=0)
         camera = tuple(float(v) for v in point(data["camera"]["point"], "camera.point") - centre)
     return Scene(str(task.get("name") or data.get("name") or label), fixed, objects, offsets, surfaces, colors, floors,
-                 base, torso, arms, tuple(dict.fromkeys(str(g).lower() for g in grasps)), goals, notes, camera, body_of)
+                 base, torso, arms, tuple(dict.fromkeys(str(g).lower() for g in grasps)), goals, notes, camera, body_of,
+                 on_floor, floor_fixed)
+
+
+def embedded(fixed, objects) -> list:
+    """(object, fixed shape, depth) for each of ``objects`` that stands in a fixed shape deeper than the
+    sanity check allows (interlayer_manip.sanity.PENETRATION), the deepest shape named."""
+    from interlayer_manip.sanity import PENETRATION, penetrations
+
+    deepest = {}
+    for i, j, depth in penetrations([*fixed, *objects], [False] * len(fixed) + [True] * len(objects)):
+        if depth > PENETRATION and (i < len(fixed)) != (j < len(fixed)):
+            f, o = (i, j) if i < len(fixed) else (j, i)
+            name = objects[o - len(fixed)].name
+            if depth > deepest.get(name, (None, 0.0))[1]:
+                deepest[name] = (fixed[f].name, depth)
+    return [(o.name, *deepest[o.name]) for o in objects if o.name in deepest]
 
 
 def _goal_symbols(goals, sym) -> dict:

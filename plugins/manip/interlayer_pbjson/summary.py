@@ -14,7 +14,7 @@ def describe(geometry) -> str:
         return ", ".join(labels.get(s, s) for s in symbols)
 
     bodies = sorted({show(body_of.get(o.name, o.name)) for o in layout.fixed + extra.get("floors", [])})
-    lines = [f"{len(layout.objects)} movable object(s), {len(bodies)} fixed bod{'y' if len(bodies) == 1 else 'ies'} "
+    lines = [f"{len(layout.objects) - len(extra.get('floor_handling', {}))} movable object(s), {len(bodies)} fixed bod{'y' if len(bodies) == 1 else 'ies'} "
              f"({len(layout.fixed)} collision shapes: {', '.join(bodies)})"]
     kinds = {}
     for s in geometry.surfaces.values():
@@ -24,11 +24,26 @@ def describe(geometry) -> str:
             lines.append(f"  {label}: " + ", ".join(f"{show(s.name)} (z {s.z:.3f}" + (f", {len(s.polygon)}-gon" if kind == "region" else "")
                                                     + ")" for s in kinds[kind]))
     world = geometry.initial_world()
+    floor = extra.get("floor_handling", {})
     for o in layout.objects:
+        if o.name in floor:
+            continue
         size = "x".join(f"{v:.3f}" for v in (o.size if o.shape == "box" else (2 * o.size[0], o.size[1])))
         on = show(*geometry.supports_of(o.name, world.objects[o.name], world)) or "nothing known"
         lines.append(f"  {show(o.name)}: {o.shape} {size} m at ({o.pose[0]:.3f}, {o.pose[1]:.3f}, {o.pose[2]:.3f}), "
                      f"yaw {math.degrees(o.pose[3]):.0f} deg, on {on}")
+    stuck = extra.get("floor_fixed", [])
+    if floor or stuck:
+        lines.append(f"  floor obstacles ({len(floor) + len(stuck)}), moved only where a drive finds them in the way:")
+    for name, how in floor.items():
+        o = geometry.specs[name]
+        size = "x".join(f"{v:.3f}" for v in (o.size if o.shape == "box" else (2 * o.size[0], o.size[1])))
+        can = "pick (a grasp fits the gripper) or push with the base" if how == "pick" else \
+            f"push with the base (no grasp fits the gripper's {geometry.robot.max_gripper_opening:.3f} m opening)"
+        lines.append(f"    {show(name)}: {o.shape} {size} m at ({o.pose[0]:.3f}, {o.pose[1]:.3f}), "
+                     f"yaw {math.degrees(o.pose[3]):.0f} deg: {can}")
+    for name, wall, depth in stuck:
+        lines.append(f"    {show(name)}: nothing (it stands {depth * 1000:.0f} mm inside {show(wall)}: kept fixed as part of it)")
     b = layout.base
     torso = extra.get("torso_conf")
     torso_note = "" if torso is None or abs(torso - extra["torso_height"]) < 1e-9 else f" (raised from {torso:.3f})"

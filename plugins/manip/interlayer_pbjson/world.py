@@ -19,7 +19,7 @@ from interlayer.errors import UserError
 from interlayer.refine import Failure, StepOutcome
 from interlayer_manip.scene import REST_GAP
 from interlayer_manip.validate import upright
-from interlayer_manip.state import PADDING, _failure, _holding, pose4, wrap
+from interlayer_manip.state import PADDING, RES_BASE, _failure, _holding, pose4, trans, wrap
 from interlayer_manip.world import ManipulationGeometry
 
 from .domain import HELD_GRASP
@@ -27,6 +27,8 @@ from .scene import ON_TOL, inside, tops
 
 HOME_TOL = 1e-3  # m / rad: the robot is back at its start configuration
 GOAL_POS_TOL, GOAL_YAW_TOL = 0.01, math.radians(5)  # an object is at its goal pose
+PUSH_GAP = 0.01  # m: a pushed object is held this far ahead of the first contact with the base (touching collides)
+PUSH_CONTACT = 0.02  # m: the validator's test that the base pushes it: moved this much closer, it touches the robot
 
 
 class PBGeometry(ManipulationGeometry):
@@ -35,6 +37,9 @@ class PBGeometry(ManipulationGeometry):
         self.surfaces = layout.extra["surfaces"]
         self.goals = layout.extra["goals"]
         self.start_arms = self._start_arms(layout.extra.get("arms", {}))
+        self.floor_objects = set(layout.extra.get("floor_objects", ()))
+        self.blocked_drives = []  # (from, to) xy of drives floor obstacles blocked: the push sampler clears them
+        self._areas = {}  # where the base can drive among the floor obstacles (see base_query)
 
     def _start_arms(self, conf) -> dict:
         out = {}
@@ -179,7 +184,7 @@ class PBGeometry(ManipulationGeometry):
             return StepOutcome(False, failure=Failure(HELD_GRASP, (), candidate.values[HELD_GRASP]))
         acc = [0.0]
         try:
-            drives = step.action in ("go_home", "go_to") or (
+            drives = step.action in ("go_home", "go_to", "push") or (
                 len(candidate.waypoints) == 3 and
                 self.base_space.distance(np.asarray(world.base, float), np.asarray(candidate.waypoints[0], float)) > 1e-9)
             segs = []
@@ -195,6 +200,8 @@ class PBGeometry(ManipulationGeometry):
                     return failed
             if step.action == "go_home":
                 out = self._go_home(world, motion, acc)
+            elif step.action == "push":
+                out = self._push(step, world, candidate, motion, acc)
             elif step.action == "go_to":
                 w, failed = self.drive(world, candidate.waypoints[0], "go_to drive", out_segs := [], motion, acc)
                 out = failed or StepOutcome(True, replace(w, tloc={}), out_segs)
@@ -207,6 +214,127 @@ class PBGeometry(ManipulationGeometry):
             return out
         finally:
             self.stats.add_time("collision_checking", acc[0])
+
+    def drive(self, world, base, label, segs, motion, acc, exclude=None):
+        """The base driven to ``base``; a drive that floor obstacles block fails as a ``base_obstruction``
+        naming them (the task planner learns ``BaseObstructs``, not ``FinalClear``, or ``PushBlocked``)."""
+        w, failed = super().drive(world, base, label, segs, motion, acc, exclude)
+        if failed is None or failed.failure.kind != "obstruction":
+            return w, failed
+        hit = tuple(o for o in failed.failure.objects if o in self.floor_objects)
+        if not hit:
+            return w, failed
+        hit = self.one_blocker(world, base, hit)
+        self.blocked_drives = [*self.blocked_drives[-15:], (tuple(world.base[:2]), tuple(base[:2]))]
+        return w, StepOutcome(False, failure=Failure("base_obstruction", hit, failed.failure.detail))
+
+    def one_blocker(self, world, goal, hit) -> tuple:
+        """A randomized planner's relaxed path wanders and runs into more floor obstacles than the way
+        needs: the first of ``hit`` whose removal alone lets the flood fill reach ``goal`` from the base,
+        if one does (as ``_fewer_blockers`` does for arms); else ``hit``."""
+        for o in hit if len(hit) > 1 else ():
+            area = self._area(world, world.base, without=o)
+            if area is not None and area(float(goal[0]), float(goal[1])):
+                return (o,)
+        return hit
+
+    def base_query(self, world, start, goal, label, acc):
+        """The base's motion query; when the floor obstacles cut ``goal`` off from ``start`` (the loader's
+        flood fill of a disk inside the base's footprint: if the disk cannot get there, neither can the
+        base), the search among them is skipped: no path is valid, and the motion planner goes straight to
+        the path with movables ignored and names what it runs into (a searching planner otherwise spends
+        its whole time limit before that)."""
+        query = super().base_query(world, start, goal, label, acc)
+        if self.floor_objects and self._cut_off(world, start, goal):
+            self.stats.count("drives_cut_off_by_floor_obstacles")
+            return replace(query, is_valid=lambda v: False)
+        return query
+
+    def _cut_off(self, world, start, goal) -> bool:
+        area = self._area(world, start)
+        return area is not None and not area(float(goal[0]), float(goal[1]))
+
+    def _area(self, world, start, without=None):
+        """Where the base can drive from ``start`` among the fixed shapes and the floor obstacles where
+        ``world`` has them (but ``without``): the loader's ``reachable_area`` (None: no conclusion)."""
+        from .loader import reachable_area
+        from .samplers import _spec_at
+
+        floor = tuple(sorted((o, tuple(np.round(P[:2, 3], 4))) for o, P in world.objects.items()
+                             if o in self.floor_objects and o != without))
+        key = (floor, tuple(np.round(np.asarray(start[:2], float), 2)))
+        if key not in self._areas:
+            if len(self._areas) > 64:
+                self._areas.clear()
+            shapes = [*self.layout.fixed, *(_spec_at(self.specs[o], world.objects[o]) for o, _ in floor)]
+            self._areas[key] = reachable_area(shapes, start, *self.layout.extra["base_limits"])
+        return self._areas[key]
+
+    # -- pushing a floor obstacle with the base ------------------------------------------------------
+    def contact_distance(self, world, obj, heading, far: float = 2.0) -> float | None:
+        """How far ahead of the base's origin, along ``heading`` (the base facing it), ``obj`` first
+        touches the robot as ``world`` has it (bisection to 2 mm); None if it touches at ``far``."""
+        P = world.objects[obj]
+        x, y = P[0, 3], P[1, 3]
+
+        def touches(d):
+            w = replace(world, base=(x - d * math.cos(heading), y - d * math.sin(heading), heading))
+            with self.stats.timer("collision_checking"):
+                return obj in self.cw.colliding_movables(self.sync(w))
+        if touches(far):
+            return None
+        lo, hi = 0.0, far
+        while hi - lo > 0.002:
+            mid = (lo + hi) / 2
+            lo, hi = (mid, hi) if touches(mid) else (lo, mid)
+        return hi
+
+    def push_line(self, world, obj, start, end, fine: float = RES_BASE / 5, movables: bool = True):
+        """The base driving straight from ``start`` to ``end`` with ``obj`` (as ``world`` has it) moved rigidly
+        in front of it: (world after, None) or (world, the Failure) naming what the robot or the object hits
+        (a movable blocker as an obstruction; with ``movables`` False, only fixed obstacles are checked).
+        Checked every ``fine`` m (the validator's resolution by default)."""
+        B = np.linalg.inv(base4(start)) @ world.objects[obj]
+        base = self.robot.group("base")
+        with self.stats.timer("collision_checking"):
+            q0 = self.sync(replace(world, base=tuple(start)))
+            try:
+                for v in self.base_space.densify([np.asarray(start, float), np.asarray(end, float)], fine):
+                    P = base4(v) @ B
+                    self.cw.set_pose(obj, P)
+                    q = base.set(q0, v)
+                    if not self.base_space.within_bounds(v):
+                        return world, Failure("unreachable", (), f"push: the base leaves its bounds at {np.round(v, 3).tolist()}")
+                    hits = (self.cw.objects_overlap(obj, P) | self.cw.colliding_movables(q)) - {obj} \
+                        - {o for o, _ in world.held.values()}
+                    if hits & self.fixed or self.cw.in_collision(q, ignore=tuple(world.objects), movables=False):
+                        return world, Failure("unreachable", (), f"push: {obj} or the robot runs into a fixed obstacle "
+                                                                 f"at base {np.round(v, 3).tolist()}")
+                    if hits and movables:
+                        return world, Failure("obstruction", tuple(sorted(hits)), f"push: {obj} or the robot runs into "
+                                                                                  f"{', '.join(sorted(hits))}")
+                    if movables and self.cw.in_collision(q):
+                        return world, Failure("unreachable", (), f"push: collision at base {np.round(v, 3).tolist()}")
+            finally:
+                self.cw.set_pose(obj, world.objects[obj])
+                self._synced = None
+        return replace(world, base=tuple(float(v) for v in end), objects={**world.objects, obj: base4(end) @ B}), None
+
+    def _push(self, step, world, cand, motion, acc):
+        """push(f): drive to the candidate's first base pose (facing f, just short of touching it), then
+        straight to its second one, f moving rigidly ahead of the base."""
+        obj = step.args[0]
+        start, end = (tuple(float(v) for v in p) for p in cand.waypoints)
+        segs = []
+        w, failed = self.drive(world, start, "push drive", segs, motion, acc, exclude=obj)
+        if failed:
+            return failed
+        after, why = self.push_line(w, obj, start, end)
+        if why:
+            return StepOutcome(False, failure=why)
+        seg = self._segment("push", "base", [start, end], _holding(w))
+        seg.update(object=obj, base_T_object=(np.linalg.inv(base4(start)) @ w.objects[obj]).tolist())
+        return StepOutcome(True, replace(after, tloc={}), segs + [seg])
 
     def tucked(self, world):
         """``world`` with every empty arm tucked (where :meth:`_tuck` moves them)."""
@@ -247,7 +375,8 @@ class PBGeometry(ManipulationGeometry):
         from interlayer_manip.validate import validate_trajectory
 
         rules = SimpleNamespace(rests=lambda g, world, obj, P: g.resting_on(obj, P, world),
-                                goal=lambda g, world: g.goal_violations(world, trajectory))
+                                goal=lambda g, world: g.goal_violations(world, trajectory),
+                                kinds=("push",), event=check_push)
         return validate_trajectory(type(self)(self.layout, padding=0.0), plan, trajectory, rules=rules)
 
     # -- output --------------------------------------------------------------------------------------
@@ -269,4 +398,66 @@ class PBGeometry(ManipulationGeometry):
     def animation_frames(self, scene, trajectory):
         from interlayer_manip import draw
 
-        return draw.animation_frames(self, scene, trajectory)
+        return draw.animation_frames(self, scene, as_carried(trajectory))
+
+
+def base4(b) -> np.ndarray:
+    """The 4x4 pose of the base frame at (x, y, yaw), on the floor."""
+    return pose4(float(b[0]), float(b[1]), 0.0, float(b[2]))
+
+
+def as_carried(trajectory) -> dict:
+    """``trajectory`` with each push drawn as the viewer draws a carried tray: the object taken along with
+    the base ("carry"), the base's drive, the object left where it ends ("set_down")."""
+    steps = []
+    for step in trajectory.get("steps") or []:
+        segs = []
+        for seg in step.get("segments") or []:
+            if seg.get("kind") != "push":
+                segs.append(seg)
+                continue
+            B = np.asarray(seg["base_T_object"], float)
+            segs += [{"kind": "carry", "objects": [seg["object"]]}, {**seg, "kind": "base"},
+                     {"kind": "set_down", "objects": {seg["object"]: (base4(seg["points"][-1]["positions"]) @ B).tolist()}}]
+        steps.append({**step, "segments": segs})
+    return {**trajectory, "steps": steps}
+
+
+def check_push(geometry, world, seg, at):
+    """The validator's check of a push segment: a straight forward drive of the base (its heading fixed),
+    the object touching the base's front at the start and moving rigidly with it, nothing colliding at the
+    validator's resolution, velocities and accelerations within the base's limits."""
+    from interlayer_manip.validate import _check_timing, _pose_close
+
+    obj = seg.get("object")
+    if seg.get("kind") != "push" or seg.get("group") != "base" or obj not in world.objects:
+        return world, f"{at}: a push must drive the base against a resting object, not {seg.get('group')!r} / {obj!r}"
+    if list(seg.get("joint_names", [])) != ["x", "y", "theta"]:
+        return world, f"{at}: joint names {seg.get('joint_names')} are not the base's"
+    points = seg.get("points") or []
+    path = [np.asarray(p["positions"], float) for p in points]
+    if not path or any(len(p) != 3 for p in path):
+        return world, f"{at}: empty, or a point has the wrong number of positions"
+    if geometry.base_space.distance(path[0], np.asarray(world.base, float)) > 1e-6:
+        return world, f"{at}: starts at {np.round(path[0], 3).tolist()} but the base is at {np.round(world.base, 3).tolist()}"
+    B = np.asarray(seg.get("base_T_object"), float)
+    if not _pose_close(base4(path[0]) @ B, world.objects[obj]):
+        return world, f"{at}: {obj} is not where the push starts it (teleported)"
+    d = path[-1][:2] - path[0][:2]
+    h = path[0][2]
+    if any(abs(wrap(p[2] - h)) > 1e-6 for p in path) or abs(-math.sin(h) * d[0] + math.cos(h) * d[1]) > 1e-6 or \
+            math.cos(h) * d[0] + math.sin(h) * d[1] < 0 or \
+            any(abs(-math.sin(h) * (p[0] - path[0][0]) + math.cos(h) * (p[1] - path[0][1])) > 1e-6 for p in path):
+        return world, f"{at}: a push drives the base straight forward, heading fixed"
+    q0 = geometry.sync(world)
+    geometry.cw.set_pose(obj, base4(path[0]) @ trans(-PUSH_CONTACT, 0.0, 0.0) @ B)
+    touching = obj in geometry.cw.colliding_movables(q0)
+    geometry.cw.set_pose(obj, world.objects[obj])
+    geometry._synced = None
+    if not touching:
+        return world, f"{at}: {obj} is more than {PUSH_CONTACT * 100:.0f} cm ahead of the robot: the base does not push it"
+    after, why = geometry.push_line(world, obj, path[0], path[-1])
+    if why:
+        return world, f"{at}: {why.detail}"
+    why = _check_timing(geometry, geometry.base_space, "base", ["x", "y", "theta"], points, path, at)
+    return (world, why) if why else (after, None)
