@@ -7,7 +7,8 @@ from dataclasses import replace
 
 import numpy as np
 from interlayer.refine import Candidate, EpochState
-from interlayer_manip.generators import FIXED_SPREAD, _base_free
+from interlayer_manip.generators import _base_free
+from interlayer_manip.grasps import FIXED_SPREAD
 from interlayer_manip.scene import REST_GAP, base_limits, table_top
 from interlayer_manip.state import pose4, wrap
 

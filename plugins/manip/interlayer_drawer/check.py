@@ -56,7 +56,7 @@ class Report:
 
 def top_grasps(P, yaws=(0.0, math.pi / 2, math.pi / 4, -math.pi / 4)):
     """Tool poses of top grasps of a cylinder at P (as interlayer_manip.generators.grasp_poses builds them)."""
-    from interlayer_manip.generators import DOWN
+    from interlayer_manip.grasps import DOWN
     from interlayer_manip.state import rz, trans
 
     depth = min(0.03, INNER[1] / 2)

@@ -37,7 +37,7 @@ def _measure(robot, arm, top, height, kind):
     from interlayer.errors import UserError
     from interlayer_pinocchio import CollisionWorld, solve_ik
 
-    from .generators import DOWN
+    from .grasps import DOWN
 
     cw = CollisionWorld(robot)
     cw.add_box("table", (2.0, 3.0, 0.1), pose4(EDGE_GAP + 1.0, 0.0, top - 0.05, 0.0))

@@ -254,7 +254,7 @@ def floor_handling(geometry) -> dict:
     """Floor obstacle -> "pick" when a grasp of the file's kinds fits the gripper (the width proof of every
     object; it may be pushed too, e.g. where the arm cannot reach it), else "push" (the base pushes it; the
     files give no masses, so size is the only limit)."""
-    from interlayer_manip.generators import fits_gripper
+    from interlayer_manip.grasps import fits_gripper
 
     kinds = geometry.layout.grasps
     return {o: "pick" if fits_gripper(geometry, o, kinds) else "push" for o in geometry.layout.extra["floor_objects"]}

@@ -1,0 +1,227 @@
+"""Grasps for any robot: side / top grasp poses from the tool frame and the gripper's range, the proofs that
+an object cannot be grasped (too wide, no room for the hand), and straight-line IK paths (approach, lift).
+The pose generators (generators.py) build on them."""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from interlayer.refine import Infeasible
+
+from .state import LIFT, OPEN_CLEARANCE, PRE_GRASP, pose4, rz, trans, wrap
+
+LINE_STEP = 0.05  # m between IK waypoints of straight-line approaches
+GRASP_CLEARANCE = 0.001  # the gripper must open at least this much wider than the object
+GRASP_DEPTH = 0.04  # m: the deepest a side grasp reaches into an object (tool point to its near face)
+# rad: side grasps of a cylinder face up to this far off the heading asked for. A mobile base varies the
+# heading itself (it stands elsewhere); a fixed one cannot, and an object near it is reached sideways only:
+# radially, the pre-grasp would sit on the base (Panda, Clutter-25: 0 of 76 radial grasps of objects
+# within 0.55 m found, 76 of 76 at 1 rad off)
+SIDE_SPREAD, FIXED_SPREAD = 0.5, 1.2
+DOWN = np.array([[0, 0, 1, 0], [0, 1, 0, 0], [-1, 0, 0, 0], [0, 0, 0, 1.0]])  # tool x pointing down
+
+
+def _problem_grasps(problem, obj=None):
+    """Grasp kinds allowed for obj: the layout's, unless its extra "grasps_of" names some for obj."""
+    layout = problem.geometry.layout
+    return tuple(layout.extra.get("grasps_of", {}).get(obj, layout.grasps))
+
+
+def grasp_poses(geometry, name, P, heading, kinds, rng, n_side=5):
+    """Tool poses grasping object ``name`` at pose P, facing roughly along ``heading`` (world yaw): side
+    grasps of a cylinder within SIDE_SPREAD of it (FIXED_SPREAD for a fixed base). Only grasps whose
+    closing width fits the gripper are returned."""
+    o = geometry.specs[name]
+    spread = SIDE_SPREAD if geometry.robot.mobile else FIXED_SPREAD
+    opening = geometry.robot.max_gripper_opening
+    x, y, z = P[:3, 3]
+    yaw_o = math.atan2(P[1, 0], P[0, 0])
+    h = o.height
+    out = []
+    if "side" in kinds:
+        if o.shape == "cylinder":
+            if 2 * o.size[0] + GRASP_CLEARANCE <= opening:
+                offs = [0.0] + [float(v) for v in rng.uniform(-spread, spread, size=n_side - 1)]
+                out += [("side", trans(x, y, z) @ rz(heading + d)) for d in offs]
+        else:
+            for k in range(4):
+                yaw = yaw_o + k * math.pi / 2
+                across = o.size[1] if k % 2 == 0 else o.size[0]  # extent along the closing (y) axis
+                depth = (o.size[0] if k % 2 == 0 else o.size[1]) / 2  # from the near face to the centre
+                if across + GRASP_CLEARANCE <= opening and abs(wrap(yaw - heading)) < math.pi / 2 - 0.2:
+                    # a long box is held near its face: the palm stays GRASP_DEPTH from the tool point
+                    out.append(("side", trans(x, y, z) @ rz(yaw) @ trans(-max(0.0, depth - GRASP_DEPTH), 0, 0)))
+    if "top" in kinds:
+        depth = min(0.03, h / 2)
+        zt = z + h / 2 - depth
+        if o.shape == "cylinder":
+            if 2 * o.size[0] + GRASP_CLEARANCE <= opening:
+                out += [("top", trans(x, y, zt) @ rz(heading + d) @ DOWN) for d in (0.0, math.pi / 2)]
+        else:
+            for k in range(2):
+                across = o.size[1] if k == 0 else o.size[0]
+                if across + GRASP_CLEARANCE <= opening:
+                    out.append(("top", trans(x, y, zt) @ rz(yaw_o + k * math.pi / 2) @ DOWN))
+    return out
+
+
+def check_graspable(problem, name):
+    """Raise Infeasible when no grasp of the allowed kinds fits the gripper and the goal needs the object."""
+    geometry = problem.geometry
+    o = geometry.specs[name]
+    found = fits_gripper(geometry, name, _problem_grasps(problem, name))
+    if not found and goal_needs(problem, name):
+        width = 2 * o.size[0] if o.shape == "cylinder" else min(o.size[0], o.size[1])
+        raise Infeasible(f"{name} is {width:.3f} m wide but the {geometry.robot.description.name} gripper opens only "
+                         f"{geometry.robot.max_gripper_opening:.3f} m: no grasp exists")
+    return found
+
+
+def fits_gripper(geometry, name, kinds) -> bool:
+    """Some grasp of ``kinds`` of object ``name`` fits the gripper's opening (from any side)."""
+    o = geometry.specs[name]
+    rng = np.random.default_rng(0)
+    return any(grasp_poses(geometry, name, pose4(*o.pose), h, kinds, rng, n_side=1)
+               for h in np.linspace(-math.pi, math.pi, 8, endpoint=False))
+
+
+def goal_needs(problem, obj) -> bool:
+    """The goal cannot hold with every fact about ``obj`` as at the start, whatever the other facts are
+    (each taken as the goal wants it): only then does an object that cannot be grasped prove the problem
+    unsolvable. A goal with a choice (hold any one of a class) does not need any one of its objects."""
+    from interlayer import logic
+
+    def best(f, positive=True):  # f's truth with the other facts chosen in its favour (over-approximated)
+        if isinstance(f, logic.Pred):
+            atom = logic.ground_atom(f, {})
+            return (atom in problem.init) == positive if obj in atom[1:] else True
+        if isinstance(f, logic.Not):
+            return best(f.arg, not positive)
+        if isinstance(f, (logic.And, logic.Or)):
+            parts = [best(a, positive) for a in f.args]
+            return all(parts) if isinstance(f, logic.And) == positive else any(parts)
+        return True  # quantifiers, conditional effects: no conclusion
+
+    return not best(logic.parse(problem.goal))
+
+
+def check_hand_fits(problem, world, obj):
+    """Raise Infeasible when the goal needs ``obj`` moved but every grasp of it where it stands puts the
+    hand, opened only as wide as the grasp needs, into a fixed obstacle (whatever the arm and base do:
+    fixed obstacles never move). Boxes only (their grasps are finitely many), objects not riding on an
+    articulated body; called when a pick generator found nothing, to say why."""
+    geometry = problem.geometry
+    o = geometry.specs[obj]
+    if o.shape != "box" or not goal_needs(problem, obj) or obj in world.riders or world.holder(obj) is not None:
+        return
+    rng = np.random.default_rng(0)
+    P = world.objects[obj]
+    poses = {}
+    for heading in np.linspace(-math.pi, math.pi, 8, endpoint=False):
+        for kind, T in grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng, n_side=1):
+            poses[tuple(np.round(T[:3, :4].ravel(), 6))] = T
+    if not poses:
+        return  # check_graspable names the width
+    ignore = tuple(geometry.fixed) + tuple(world.objects)
+    blockers = set()
+    for T in poses.values():
+        # a base 0.6 m behind the grasp, facing along the approach (a top grasp or a fixed base: where the robot is)
+        yaw = _yaw(T) if abs(T[2, 0]) < 0.7 else _bearing(world.base, P[0, 3], P[1, 3])
+        base = (float(T[0, 3] - 0.6 * math.cos(yaw)), float(T[1, 3] - 0.6 * math.sin(yaw)), yaw)
+        w = replace(world, held={}, base=base if geometry.robot.mobile else world.base)
+        opened = geometry.opening(obj, np.linalg.inv(T) @ P)
+        found = ((a, geometry.ik(w, a, T, rng, ignore=ignore, gripper=opened)) for a in geometry.robot.arms)
+        arm, v = next(((a, v) for a, v in found if v is not None), (None, None))
+        if arm is None:
+            return  # not reached even with nothing in the way: no proof
+        q = geometry.sync(w.with_arm(arm, v).with_gripper(arm, opened))
+        robot = geometry.robot
+        geoms = set(robot.gripper_links(arm))  # the hand's geometries -> their links (collision pairs name links)
+        hand = {robot.model.frames[g.parentFrame].name for g in robot.collision_model.geometryObjects if g.name in geoms}
+        hits = {b for a, b in geometry.cw.collision_pairs(q, movables=False) if a in hand and b in geometry.fixed}
+        if not hits:
+            return
+        blockers |= hits
+    padded = f"; planning keeps {geometry.padding * 100:.1f} cm from fixed obstacles" if geometry.padding else ""
+    raise Infeasible(f"every grasp of {obj} that fits the gripper puts the {geometry.robot.description.name}'s fingers into {', '.join(sorted(blockers))} "
+                     f"where {obj} stands (the gripper opened only {OPEN_CLEARANCE * 100:.0f} cm wider than {obj}{padded}), "
+                     f"and the goal needs {obj} moved")
+
+
+def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10, hand_check=False, splits=0):
+    """(approach, raise) for grasping ``obj`` at tool pose T: ``approach`` is a list of IK solutions
+    along the straight line from the pre-grasp (PRE_GRASP behind T along the tool x axis) to T, each
+    seeded by the next one; ``raise`` lifts the grasp by LIFT, then withdraws it by PRE_GRASP (back
+    along the approach for side grasps, further up for top grasps), out of shelves and cubbies. None if
+    IK fails, the joint path strays, or a piece of it hits a fixed obstacle (the gripper opened as the
+    grasp needs). ``attempts``: IK seeds for the grasp. ``hand_check``: first reject, without IK, a grasp
+    or pre-grasp whose hand alone (opened as the grasp needs) touches a fixed obstacle."""
+    ignore = (obj,)
+    opened = geometry.opening(obj, np.linalg.inv(T) @ world.objects[obj])
+    if hand_check:
+        hand = world.with_gripper(arm, opened)
+        if not (geometry.hand_free(hand, arm, T, ignore) and
+                geometry.hand_free(hand, arm, T @ trans(-PRE_GRASP, 0, 0), ignore)):
+            return None
+    grasp = geometry.ik(world, arm, T, rng, ignore=ignore, gripper=opened, attempts=attempts)
+    if grasp is None:
+        return None
+    line = _line(geometry, world, arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, grasp, rng, ignore, opened, splits)
+    if line is None or not geometry.static_path_ok(world.with_gripper(arm, opened), arm, line, ignore):
+        return None
+    up = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, grasp, rng, ignore, opened, splits)
+    if up is None:
+        return None
+    U = trans(0, 0, LIFT) @ T
+    back_at = (lambda d: trans(0, 0, d) @ U) if kind == "top" else (lambda d: U @ trans(-d, 0, 0))
+    back = _line(geometry, world, arm, U, back_at, PRE_GRASP, up[-1], rng, ignore, opened, splits)
+    if back is None:
+        return None
+    lift = up + back[1:]
+    if not geometry.static_path_ok(world.with_gripper(arm, opened), arm, lift, ignore):
+        return None
+    return tuple(reversed(line)), tuple(lift[1:])
+
+
+def _line(geometry, world, arm, T, at, length, start, rng, ignore=(), gripper=None, splits=0):
+    """IK solutions for at(0) = T, at(STEP), ..., at(length), each seeded by the previous one (with
+    ``splits``, a step that moves the joints too far is split that many times, see _line_step)."""
+    n = max(1, math.ceil(length / LINE_STEP - 1e-9))
+    out = [start]
+    for k in range(1, n + 1):
+        steps = _line_step(geometry, world, arm, at, length * (k - 1) / n, length * k / n, out[-1], rng, ignore, gripper,
+                           splits)
+        if steps is None:
+            return None
+        out += steps
+    return out
+
+
+def _line_step(geometry, world, arm, at, d0, d1, prev, rng, ignore, gripper, splits: int):
+    """IK solutions from ``prev`` (at d0) to at(d1): one, or, when the joints move more than 0.35 rad
+    on the way, the halves' (at most ``splits`` times). The joints of a nearly stretched arm move fast
+    but continuously, so halving the step halves their move; a jump to another IK branch does not
+    shrink. Without the split, side grasps across a table's width failed their approach line."""
+    v = geometry.ik(world, arm, at(d1), rng, ignore=ignore, seed=prev, attempts=2, gripper=gripper)
+    if v is None:
+        return None
+    if geometry.arm_space[arm].distance(v, prev) <= 0.35:
+        return [v]
+    if not splits:
+        return None
+    half = _line_step(geometry, world, arm, at, d0, (d0 + d1) / 2, prev, rng, ignore, gripper, splits - 1)
+    rest = half and _line_step(geometry, world, arm, at, (d0 + d1) / 2, d1, half[-1], rng, ignore, gripper, splits - 1)
+    return half + rest if rest else None
+
+
+def _bearing(base, x, y):
+    return math.atan2(y - base[1], x - base[0])
+
+
+def _yaw(T):
+    x = T[:3, 0]
+    if abs(x[2]) > 0.7:  # pointing down: use the closing axis
+        return math.atan2(T[1, 1], T[0, 1]) - math.pi / 2
+    return math.atan2(x[1], x[0])
