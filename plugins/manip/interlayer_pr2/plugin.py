@@ -98,7 +98,8 @@ def interlayer_register_domains(registry):
 def interlayer_register_pose_generators(registry):
     generators = "interlayer_manip.generators:"  # imported when selected
 
-    registry.add("pr2:move_base", generators + "move_base", "base poses in an annulus around the object or put-down spot")
+    registry.add("pr2:move_base", generators + "move_base",
+                 "base poses from which the arm reaches the object or put-down spot (reachmap.py), by IK")
     registry.add("pr2:pick", generators + "pick", "side (and top) grasps with pre-grasp and raise waypoints, by IK")
     registry.add("pr2:place", generators + "place", "the put-down spot chosen by move_base and nearby variants, by IK")
 
