@@ -158,9 +158,7 @@ class CollisionWorld(Distances, Pairs):
         obj.pose = new
         self._poses += 1
         if not self._needs_build:
-            self._gm.geometryObjects[obj.gid].placement = new
-            for slot in self._slots:
-                slot.gm.geometryObjects[obj.gid].placement = new
+            self._place(obj)
 
     def pose(self, name: str, q=None) -> np.ndarray:
         """World pose (4x4); a held object needs the configuration ``q``."""
