@@ -39,6 +39,22 @@ def test_action_costs_reach_the_optimal_planner(host, name):
     assert [s.action for s in res.plan] == ["walk"] * 3 and res.cost == 3 == model.cost(res.plan)
 
 
+@pytest.mark.parametrize("name", ["fast-downward-bjolp", "fast-downward-opt"])
+def test_optimal_planners_take_quantified_conditions_over_changing_facts(host, name):
+    """Fast Downward makes axioms of a forall over a fact that actions change; its optimal
+    searches refuse axioms, so the adapter grounds the forall first (a learned-fact precondition)."""
+    spec = DomainSpec(
+        name="doors", types={"room": None}, continuous_types=(),
+        predicates={"At": ("room",), "Shut": ("room",)}, skolems=(),
+        actions=(ActionSpec("go", (("?a", "room"), ("?b", "room")),
+                            "(and (At ?a) (forall (?r - room) (not (Shut ?r))))", "(and (not (At ?a)) (At ?b))"),
+                 ActionSpec("open", (("?a", "room"),), "(Shut ?a)", "(not (Shut ?a))")))
+    model = abstract(Problem(spec, {"r0": "room", "r1": "room"}, frozenset({("At", "r0"), ("Shut", "r1")}), "(At r1)", None, {}))
+    res = host["task_planners"].get(name).factory({}).plan(model, model.init, 30)
+    assert res.status == "solved", res.reason
+    assert [s.action for s in res.plan] == ["open", "go"] and check_plan(model, model.init, res.plan) == ""
+
+
 def test_custom_search_string_and_unsolvable_state(host):
     model = corridor()
     planner = host["task_planners"].get("fast-downward").factory({"search": "astar(blind())"})

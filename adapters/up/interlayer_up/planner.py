@@ -317,14 +317,22 @@ def _up_validate(problem, plan) -> str:
     return "" if check.status.name == "VALID" else f"UP's validator rejected the plan: {check.reason}"
 
 
-def _compile_for(engine, problem):
-    """Compile away features the engine lacks (quantifiers, conditional effects, negative conditions)."""
+def _compile_for(engine, problem, no_quantifiers=False):
+    """Compile away features the engine lacks (quantifiers, conditional effects, negative conditions).
+    ``no_quantifiers``: also quantified conditions, which Fast Downward turns into axioms that its
+    cost-partitioning searches (seq-opt-bjolp) refuse."""
     from unified_planning.engines import CompilationKind
     from unified_planning.shortcuts import Compiler
 
     chain = []
     kind = problem.kind
-    for compilation, feature in ((CompilationKind.QUANTIFIERS_REMOVING, ("EXISTENTIAL_CONDITIONS", "UNIVERSAL_CONDITIONS", "FORALL_EFFECTS")),
+    quantified = ("EXISTENTIAL_CONDITIONS", "UNIVERSAL_CONDITIONS", "FORALL_EFFECTS")
+    if no_quantifiers and any(f in kind.features for f in quantified[:2]):
+        with Compiler(problem_kind=kind, compilation_kind=CompilationKind.QUANTIFIERS_REMOVING) as compiler:
+            chain.append(compiler.compile(problem, CompilationKind.QUANTIFIERS_REMOVING))
+        problem = _settled(chain[-1].problem)
+        kind = problem.kind
+    for compilation, feature in ((CompilationKind.QUANTIFIERS_REMOVING, quantified),
                                  (CompilationKind.CONDITIONAL_EFFECTS_REMOVING, ("CONDITIONAL_EFFECTS",)),
                                  (CompilationKind.DISJUNCTIVE_CONDITIONS_REMOVING, ("DISJUNCTIVE_CONDITIONS",)),
                                  (CompilationKind.NEGATIVE_CONDITIONS_REMOVING, ("NEGATIVE_CONDITIONS",))):
@@ -472,7 +480,9 @@ def _solve_locked(engine_name, params, problem, timeout, warm):
     from unified_planning.engines import PlanGenerationResultStatus as S
 
     with _engine(engine_name, params, warm=warm) as engine:
-        compiled, chain, kind = _compile_for(engine, problem)
+        # Fast Downward's optimal searches (LM-cut, bjolp) take no axioms
+        optimal = engine_name == "fast-downward-opt" or str((params or {}).get("fast_downward_alias", "")).startswith("seq-opt")
+        compiled, chain, kind = _compile_for(engine, problem, no_quantifiers=optimal)
         if not engine.supports(kind):
             return "error", None, f"the engine '{engine_name}' cannot handle this problem's features ({sorted(kind.features)})"
         if not chain:
