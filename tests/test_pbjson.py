@@ -710,3 +710,47 @@ def test_a_short_block_in_the_middle_of_a_table_is_grasped_below_its_top(tmp_pat
             assert all(abs(T[2, 3] - (P[2, 3] + 0.04 - 0.03)) < 1e-9 for _, _, T, _, _ in found)
     assert p.geometry.stats.counts["ik_calls"] > 0  # the work counted (result.json's counts)
 
+
+def rows_of_blocks(tmp_path):
+    """rearrangement_*'s kind of goal, by hand: six blocks 12 x 4 x 8 cm at their goal poses, two columns
+    of three rows filling a table 0.48 m square (0.7 m high), and a seventh block, s, without a goal
+    pose, standing in the middle."""
+    spots = [(x, y) for x in (-0.12, 0.12) for y in (-0.16, 0.0, 0.16)]
+    names = [f"k{i}" for i in range(6)]
+    block = [_box((0.06, 0.02, 0.04), (0, 0, 0.04))]
+    data = scene()
+    data["bodies"] = [_body("table", (0.0, 0.0, 0.0), [_box((0.24, 0.24, 0.35), (0, 0, 0.35))]),
+                      *(_body(n, (*spots[i], 0.701), block) for i, n in enumerate(names)),
+                      _body("s", (0.0, 0.08, 0.701), block, quat=QZ90)]
+    data["robots"][0]["point"] = _p(-1.5, 0.0, 0.0)
+    data["task"].update(object_names=[*names, "s"], table_names=["table"], sink_names=[], stove_names=[], regions=[],
+                        goal_poses={n: [1, 0, 0, 0, *spots[i], 0.701] for i, n in enumerate(names)})
+    return load(tmp_path, data)
+
+
+def test_a_put_down_keeps_off_the_footprints_of_goal_poses_not_circles_around_them(tmp_path):
+    """Issue 20 (rearrangement_*): put-downs keep off the other objects' goal poses. Circles around them
+    covered the whole table here, so a block could not be set down on the way and the plan's put-downs
+    got no candidate at all; the footprints leave lanes between the rows. Each spot offered keeps 2 cm
+    from every goal footprint and 1 cm from every object.
+    Mutation: the spots kept off circles around the goal poses again (reserved by radius): no candidate."""
+    from interlayer.domain import GroundStep
+    from interlayer.refine import stable_seed
+    from interlayer_manip.grasps import grasp_poses
+    from interlayer_pbjson.samplers import PBSampler, _spec_at
+    from interlayer_pbjson.scene import apart, polygon_of
+
+    p = rows_of_blocks(tmp_path)
+    g = p.geometry
+    w = g.initial_world()
+    P = w.objects["s"]
+    _, T = grasp_poses(g, "s", P, math.pi / 2, ("side",), np.random.default_rng(0), n_side=1)[0]
+    held = replace(w, held={"left": ("s", np.linalg.inv(T) @ P)}, objects={k: v for k, v in w.objects.items() if k != "s"})
+    step = GroundStep("place", ("s", "left", "table", "s1", "bpfpd_s_left_table_s1", "gpfpd_s_left_table_s1"))
+    found = list(PBSampler(stable_seed(0, 0, "PBSampler"))(p, step, held, np.random.default_rng(0)))
+    assert found
+    goals = [polygon_of(_spec_at(g.specs[k], C)) for k, C in g.layout.extra["goal_centres"].items()]
+    objects = [polygon_of(_spec_at(g.specs[k], Q)) for k, Q in held.objects.items()]
+    for c in found:
+        footprint = polygon_of(_spec_at(g.specs["s"], np.asarray(c.values["object_pose"])))
+        assert all(apart(footprint, q, 0.02 - 1e-9) for q in goals) and all(apart(footprint, q, 0.01 - 1e-9) for q in objects)
