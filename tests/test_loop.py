@@ -622,3 +622,18 @@ def test_a_task_planner_without_a_proof_ends_the_run_gave_up(host):
     assert result.status == "gave_up"
     assert result.reason == ("the task planner found no plan for the initial state without proving that none exists "
                              "(the search gave up (enforced hill-climbing is incomplete))")
+
+
+def test_a_generator_that_yields_nothing_counts_against_the_step_budget(host):
+    """Step 1's generator yields nothing whatever step 0 did, and step 0 has many candidates that all
+    refine: without counting the empty generator as a failure, the error-free pass re-refines step 0
+    (successes are free) once per candidate before it gives up; with it, the pass stops once the
+    step's budget is spent."""
+    def gen(problem, step, world, rng):
+        if not world:  # the first item taken (either), then nothing for the second
+            yield from (Candidate((k,), {}, f"c{k}") for k in range(30))
+
+    result, _ = run(lambda *a: None, goal="(and (Done a) (Done b))", gen=gen, host=host, max_refine_attempts=3,
+                    time_limit=3.0)
+    assert result.status != "solved"
+    assert first_pass(result) == [(0, True)] * 3

@@ -209,8 +209,9 @@ class Refiner:
     of step i, ``on_attempt`` observes each motion-planning attempt.
 
     ``max_attempts`` bounds the *failed* motion-planning attempts per plan step in one TryRefine
-    call (successes and cached outcomes are free), so the budget scales with the plan's length and
-    a plan whose every step refines is never cut off; the loop raises it at every epoch.
+    call (successes and cached outcomes are free; a generator that yields no candidate at all counts as
+    one failure), so the budget scales with the plan's length and a plan whose every step refines is
+    never cut off; the loop raises it at every epoch.
 
     Backjumping (error-free mode, geometries with ``moved``): when every candidate of a step failed
     on obstructions by objects that no step of this call has moved, and no step of it moved the
@@ -261,6 +262,12 @@ class Refiner:
                 yield PartialRefinement({k: v for k, v in outcomes.items() if k < i}, worlds[i], i,
                                         Failure(NO_CANDIDATES, detail=f"the pose generator of {plan[i].action} yielded "
                                                                       f"no candidate"), Candidate((), {}, "no candidate"))
+            if cand is None and not drawn.get(i):
+                # an empty generator is futile work like a failed attempt and counts as one: else each
+                # backtrack re-refines the earlier steps' successes (free) and asks it again, without end
+                failures[i] = failures.get(i, 0) + 1
+                if failures[i] >= self.max_attempts:
+                    return None
             if cand is None:  # lines 7-10: generator exhausted, backtrack
                 if not partial and self._futile(blockers.get(i), worlds[step], worlds[i]):
                     return None

@@ -259,7 +259,10 @@ class ClutterSampler(EpochState):
                 # exactly the refinement's first check: the approach (hover descent included), densified
                 opened = geometry.grasp_opening(w, arm, obj, wps[0][-1])
                 hit = geometry._movables_on_line(w.with_gripper(arm, opened), arm, wps[0], [0.0]) - {obj}
-                hit |= movables_on(geometry, w, arm, list(wps[1]), (obj,), gripper=opened)
+                # the raise as the refinement checks it: with obj held (a block lifted 5 cm and drawn back
+                # along its approach drags through a neighbour as tall as it; with the hand alone, every
+                # candidate looked clear and the first ones all failed there)
+                hit |= geometry._movables_on_line(_carrying(w, arm, obj, T), arm, (wps[0][-1], *wps[1]), [0.0])
                 # a rough guess at the transit's sweep: the straight joint-space line to the pre-grasp
                 sweep = movables_on(geometry, w, arm, coarse_line(w.arms[arm], wps[0][0]), (obj,), gripper=None)
             drive = math.hypot(base[0] - world.base[0], base[1] - world.base[1]) + 0.3 * abs(wrap(base[2] - world.base[2]))
@@ -476,6 +479,13 @@ def _hand_emptied(geometry, world, arm):
     return replace(world, held={a: h for a, h in world.held.items() if a != arm},
                    objects={**world.objects, obj: pose4(0.0, 0.0, -10.0, 0.0)},
                    arms={**world.arms, arm: tuple(geometry.robot.home(arm))}, grippers={**world.grippers, arm: "closed"})
+
+
+def _carrying(world, arm, obj, T):
+    """``world`` with ``arm`` holding obj by the grasp whose tool pose is T (where obj stands), closed."""
+    G = np.linalg.inv(T) @ world.objects[obj]
+    return replace(world, objects={k: v for k, v in world.objects.items() if k != obj}, held={**world.held, arm: (obj, G)},
+                   grippers={**world.grippers, arm: "closed"})
 
 
 def _pose_key(P):

@@ -41,10 +41,11 @@ def grasp_poses(geometry, name, P, heading, kinds, rng, n_side=5):
     h = o.height
     out = []
     if "side" in kinds:
+        zs = z + side_raise(geometry, name)
         if o.shape == "cylinder":
             if 2 * o.size[0] + GRASP_CLEARANCE <= opening:
                 offs = [0.0] + [float(v) for v in rng.uniform(-spread, spread, size=n_side - 1)]
-                out += [("side", trans(x, y, z) @ rz(heading + d)) for d in offs]
+                out += [("side", trans(x, y, zs) @ rz(heading + d)) for d in offs]
         else:
             for k in range(4):
                 yaw = yaw_o + k * math.pi / 2
@@ -52,7 +53,7 @@ def grasp_poses(geometry, name, P, heading, kinds, rng, n_side=5):
                 depth = (o.size[0] if k % 2 == 0 else o.size[1]) / 2  # from the near face to the centre
                 if across + GRASP_CLEARANCE <= opening and abs(wrap(yaw - heading)) < math.pi / 2 - 0.2:
                     # a long box is held near its face: the palm stays GRASP_DEPTH from the tool point
-                    out.append(("side", trans(x, y, z) @ rz(yaw) @ trans(-max(0.0, depth - GRASP_DEPTH), 0, 0)))
+                    out.append(("side", trans(x, y, zs) @ rz(yaw) @ trans(-max(0.0, depth - GRASP_DEPTH), 0, 0)))
     if "top" in kinds:
         depth = min(0.03, h / 2)
         zt = z + h / 2 - depth
@@ -65,6 +66,21 @@ def grasp_poses(geometry, name, P, heading, kinds, rng, n_side=5):
                 if across + GRASP_CLEARANCE <= opening:
                     out.append(("top", trans(x, y, zt) @ rz(yaw_o + k * math.pi / 2) @ DOWN))
     return out
+
+
+def side_raise(geometry, name) -> float:
+    """How far above its centre a side grasp holds object ``name``: 0, unless the layout gives
+    ``extra["side_grasp"] = (low, below_top)``: then a short object is held at least ``low`` above its
+    base, but no higher than ``below_top`` under its top (taller ones stay at their centre). Held at its
+    centre, a block 8 cm tall puts the PR2's wrist 4 cm over the table, where the wrist link touches it
+    at most rolls and the forearm cannot come down to it from above."""
+    layout = getattr(geometry, "layout", None)  # a stand-in geometry may give specs and robot alone
+    given = None if layout is None else layout.extra.get("side_grasp")
+    if given is None:
+        return 0.0
+    low, below_top = given
+    h = geometry.specs[name].height
+    return max(0.0, min(low - h / 2, h / 2 - below_top))
 
 
 def check_graspable(problem, name):

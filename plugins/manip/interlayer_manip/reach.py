@@ -23,6 +23,7 @@ class Reach:
         w = world.with_arm(arm, self.robot.reach_seed(arm) if seed is None else seed)
         if gripper:
             w = w.with_gripper(arm, gripper)
+        self.stats.count("ik_calls")
         with self.stats.timer("ik"):  # the sync (the seed configuration) is the solver's set-up
             q = self.sync(w)
             found = solve_ik(self.robot, arm, target, q, rng=rng, world=self.cw, attempts=attempts,

@@ -23,6 +23,9 @@ from .scene import area, oriented_box, read_scene, tops
 log = logging.getLogger("interlayer.pbjson")
 ARMS = ("left", "right")
 SLOT_NAMES = tuple(f"s{k + 1}" for k in range(SLOTS))
+# m: side grasps hold a short object at least 5 cm above its base and at most 3 cm below its top (where
+# pybullet-planning's PR2 grasps hold it: pr2_utils.SIDE_HEIGHT_OFFSET); see interlayer_manip.grasps.side_raise
+SIDE_GRASP = (0.05, 0.03)
 
 
 def looks_like_pybullet_json(path) -> dict | None:
@@ -188,7 +191,7 @@ def build_problem(scene, source, symbols) -> Problem:
              "clutter_table": clutter_table, "table_frame": table_frame, "base_area": reach, "camera": scene.camera,
              "notes": scene.notes, "floors": [o for o in scene.fixed if o.name in scene.floors],  # drawn, not collided with
              "body_of": scene.body_of, "labels": symbols.labels, "floor_objects": list(scene.floor_objects),
-             "floor_fixed": list(scene.floor_fixed)}
+             "floor_fixed": list(scene.floor_fixed), "side_grasp": SIDE_GRASP}
     # the target (Clutter's samplers search harder for its grasps and keep put-downs out of its way): the
     # object to hold, else the one object a goal places
     placed = list(dict.fromkeys([*(m for o in goals["on"] for m in goals["members"][o]), *goals["stackings"], *goals["poses"]]))

@@ -19,11 +19,13 @@ from dataclasses import replace
 import numpy as np
 from interlayer.refine import Candidate
 from interlayer_clutter.samplers import ClutterSampler, fmt, in_corridors, putdown_motion
-from interlayer_manip.scene import REST_GAP, _radius
+from interlayer_manip.scene import REST_GAP
 from interlayer_manip.state import PRE_GRASP, RES_BASE, pose4, trans, wrap
 
 from .domain import HELD_GRASP
-from .scene import draw_in, inside, polygon_of
+from .scene import apart, distance_to, draw_in, inside, polygon_of
+
+GOAL_GAP, OBJECT_GAP = 0.02, 0.01  # m: a put-down keeps this far from another object's goal pose, from an object
 
 
 class PBSampler(ClutterSampler):
@@ -61,20 +63,22 @@ class PBSampler(ClutterSampler):
         z = top + o.height / 2 + REST_GAP
         stacked = geometry.surfaces[surf].kind == "top"
         geometry.sync(world)
-        reserved = [(C[0, 3], C[1, 3], _radius(geometry.specs[k])) for k, C in geometry.layout.extra["goal_centres"].items()
+        # footprints, not circles around them: rearrangement's goal poses (blocks 12 x 4 cm in rows) cover
+        # the whole table with circles, and no spot was left to set a block down on the way
+        reserved = [polygon_of(_spec_at(geometry.specs[k], C)) for k, C in geometry.layout.extra["goal_centres"].items()
                     if k != obj]
         below = geometry.surfaces[surf].body  # the object stacked on (kind "top"): not in the way
-        others = [(Q[0, 3], Q[1, 3], _radius(geometry.specs[k])) for k, Q in world.objects.items() if k not in (obj, below)]
+        others = [polygon_of(_spec_at(geometry.specs[k], Q)) for k, Q in world.objects.items() if k not in (obj, below)]
         corridors = self.corridors_for(world, obj, geometry.layout.target)  # the best approaches found so far
-        r = _radius(o)
+        r = o.size[0] if o.shape == "cylinder" else min(o.size[0], o.size[1]) / 2  # within the footprint at any yaw
         spots = []
         for x, y in draw_in(poly, rng, 25 * tries):
             if not inside(poly, x, y, 0.005 if stacked else min(o.size[0], o.size[1]) / 2):
                 continue
-            if any(math.hypot(x - a, y - b) < r + s + 0.02 for a, b, s in reserved):
-                continue  # another object's goal pose
-            d = min((math.hypot(x - a, y - b) - r - s for a, b, s in others), default=1.0)
-            if d < 0.01:
+            if any(distance_to(g, x, y) < r + GOAL_GAP for g in reserved):
+                continue  # another object's goal pose, whatever the yaw
+            d = min((distance_to(q, x, y) - r for q in others), default=1.0)
+            if d < OBJECT_GAP:
                 continue
             spots.append((min(d, 0.25) - in_corridors(x, y, corridors) + 0.1 * rng.random(), float(x), float(y)))
             if len(spots) >= tries:
@@ -83,8 +87,12 @@ class PBSampler(ClutterSampler):
 
         def pose_at(x, y, heading):
             P, _ = _putdown(G, x, y, z, heading)
-            if not stacked and not all(inside(poly, px, py) for px, py in polygon_of(_spec_at(o, P))):
+            footprint = polygon_of(_spec_at(o, P))
+            if not stacked and not all(inside(poly, px, py) for px, py in footprint):
                 return None
+            if not all(apart(footprint, g, GOAL_GAP) for g in reserved) or \
+                    not all(apart(footprint, q, OBJECT_GAP) for q in others):
+                return None  # at this yaw, on another's goal pose or against an object
             return P
 
         yield from self._putdowns(problem, world, obj, arm, step.args[4], step.args[5],

@@ -251,6 +251,33 @@ def inside(poly, x, y, margin=0.0) -> bool:
     return True
 
 
+def distance_to(poly, x, y) -> float:
+    """How far (x, y) lies outside the convex polygon (0 inside it)."""
+    if inside(poly, x, y):
+        return 0.0
+    out = math.inf
+    for (ax, ay), (bx, by) in zip(poly, poly[1:] + poly[:1]):
+        ex, ey = bx - ax, by - ay
+        t = min(1.0, max(0.0, ((x - ax) * ex + (y - ay) * ey) / max(ex * ex + ey * ey, 1e-24)))
+        out = min(out, math.hypot(x - ax - t * ex, y - ay - t * ey))
+    return out
+
+
+def apart(a, b, gap=0.0) -> bool:
+    """Convex polygons ``a`` and ``b`` are at least ``gap`` apart along the normal of one of their edges
+    (then at least ``gap`` apart; near corners this asks a little more than the distance)."""
+    for poly in (a, b):
+        for (ax, ay), (bx, by) in zip(poly, poly[1:] + poly[:1]):
+            n = math.hypot(bx - ax, by - ay)
+            if n < 1e-12:
+                continue
+            nx, ny = (by - ay) / n, (ax - bx) / n
+            pa, pb = [px * nx + py * ny for px, py in a], [px * nx + py * ny for px, py in b]
+            if min(pb) - max(pa) >= gap or min(pa) - max(pb) >= gap:
+                return True
+    return False
+
+
 def _names(task, key, where="task"):
     value = task.get(key) or []
     if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
