@@ -212,3 +212,51 @@ def test_a_fixed_base_robot_never_puts_an_object_down_rolled_over():
             turn = tool_turn(held, T)
             assert turn is None or turn < math.radians(2)  # holding the object, never
     assert rolled >= 1
+
+
+def test_a_fixed_base_robot_grasps_a_cylinder_pitched_down_from_above_its_neighbours():
+    """A fixed base cannot walk round a crowd: its side grasps of a cylinder include one pitched down by
+    FIXED_PITCH and held near the top, the open hand clear of the cylinder; a mobile base's stay level."""
+    import math
+
+    import numpy as np
+
+    from interlayer_manip.grasps import FIXED_PITCH, grasp_poses
+
+    for robot, pitched in (("panda", True), ("pr2", False)):
+        problem, world = _clutter25(robot)
+        g, obj = problem.geometry, problem.geometry.layout.target
+        P = world.objects[obj]
+        grasps = grasp_poses(g, obj, P, 0.0, ("side",), np.random.default_rng(0), n_side=3)
+        pitches = [math.asin(-T[2, 0]) for _, T in grasps]  # the tool x axis below the horizontal
+        top = P[2, 3] + g.specs[obj].height / 2
+        assert any(abs(p - FIXED_PITCH) < 1e-9 for p in pitches) == pitched, robot
+        for (_, T), p in zip(grasps, pitches):
+            assert abs(p) < 1e-9 or 0.0 < top - T[2, 3] <= 0.06  # level at the middle, or pitched near the top
+            opened = g.opening(obj, np.linalg.inv(T) @ P)
+            others = tuple(o for o in world.objects if o != obj)
+            assert g.hand_free(world.with_gripper(g.robot.arms[0], opened), g.robot.arms[0], T, others, movables=True)
+
+
+def test_a_fixed_base_robot_reaches_into_the_open_topped_cubby_with_side_grasps(tmp_path):
+    """The cubby has no lid: the Panda's pitched side grasp comes down over the blocker into it (its level
+    ones put the forearm on a side panel: 0 of 10 seeds solved before)."""
+    import math
+
+    import numpy as np
+
+    result = api.solve(str(CUBBY), ["problem.robot=panda", "planner.seed=0", "planner.time_limit=30"])
+    traj = _solved_and_valid(result, tmp_path)
+    assert result.problem.geometry.layout.grasps == ("side",)
+    G = next(seg["grasp"] for step in traj["steps"] for seg in step["segments"] if seg["kind"] == "grasp")
+    # the object stands upright: the tool x axis's height in its frame is its pitch in the world's
+    assert math.asin(-np.linalg.inv(np.asarray(G))[2, 0]) > 0.5
+
+
+def test_a_fixed_base_robot_solves_a_crowded_clutter25_seed_that_level_grasps_time_out_on(tmp_path):
+    """Panda, Clutter-25 seed 8: with level side grasps every approach to the target ran between its
+    neighbours (120 s, 26 replans, timeout); pitched ones pass above them."""
+    result = api.solve(str(CLUTTER), ["problem.robot=panda", "problem.objects=25", "planner.seed=8",
+                                      "planner.time_limit=60"])
+    _solved_and_valid(result, tmp_path)
+    assert result.replans <= 3
