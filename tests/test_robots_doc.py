@@ -42,10 +42,11 @@ def test_the_worked_example_passes_robot_check(tmp_path, entry_point):  # noqa: 
     code, out, err = cli("robot", "check", str(tmp_path / "kinova.toml"), "--json", site=entry_point)
     assert code == 0, err
     report = json.loads(out)
-    assert report["robot"] == "kinova" and report["base"] == "fixed" and report["dof"] == 6
+    assert report["robot"] == "kinova" and report["base"] == "fixed" and report["dof"] == 8  # six arm joints, two fingers
     (arm,) = report["arms"]
     assert arm["tool_frame"] == "j2s6s200_end_effector" and arm["approach"] == "+x"
     assert arm["gripper"]["measured"] and arm["gripper"]["open"] == pytest.approx(0.122, abs=0.002)  # as the page says
+    assert arm["gripper"]["closed"] < 0  # the fingers the URDF fixes close
     assert report["self_collision"]["source"] == "sampled"
 
 
