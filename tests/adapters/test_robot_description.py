@@ -213,32 +213,7 @@ def test_gripper_opening_given_and_limits_overridden(tmp_path):
 
 # -- a hand whose URDF fixes its fingers (example-robot-data's Kinova) ------------------------------------
 
-KINOVA = """[robot]
-urdf = "{urdf}"
-[base]
-kind = "fixed"
-[[arms]]
-name = "arm"
-joints = ["j2s6s200_joint_1", "j2s6s200_joint_2", "j2s6s200_joint_3", "j2s6s200_joint_4", "j2s6s200_joint_5",
-          "j2s6s200_joint_6"]
-tool_frame = "j2s6s200_end_effector"
-approach = "+x"
-closing = "y"
-home = [4.80, 2.92, 1.00, 4.20, 1.44, 1.32]
-[arms.gripper]
-{joints}
-fingers = ["j2s6s200_link_finger_tip_1", "j2s6s200_link_finger_tip_2"]
-[self_collision]
-skip = []
-"""
-KINOVA_URDF = "example-robot-data:kinova_description/robots/kinova.urdf"
-KINOVA_FINGERS = "joints = { j2s6s200_joint_finger_1 = -1.0, j2s6s200_joint_finger_2 = -1.0 }"
-
-
-def _kinova(tmp_path, joints=KINOVA_FINGERS, urdf=KINOVA_URDF):
-    path = tmp_path / "kinova.toml"
-    path.write_text(KINOVA.format(urdf=urdf, joints=joints))
-    return path
+from kinova import kinova as _kinova  # noqa: E402  (tests/kinova.py)
 
 
 def test_finger_joints_the_urdf_fixes_move_when_the_gripper_names_them(tmp_path):

@@ -44,7 +44,8 @@ def grasp_poses(geometry, name, P, heading, kinds, rng, n_side=5):
         if o.shape == "cylinder":
             if 2 * o.size[0] + GRASP_CLEARANCE <= opening:
                 offs = [0.0] + [float(v) for v in rng.uniform(-spread, spread, size=n_side - 1)]
-                out += [("side", trans(x, y, z) @ rz(heading + d)) for d in offs]
+                back = trans(-seat(geometry.robot, o.size[0], h), 0, 0)
+                out += [("side", trans(x, y, z) @ rz(heading + d) @ back) for d in offs]
         else:
             for k in range(4):
                 yaw = yaw_o + k * math.pi / 2
@@ -65,6 +66,45 @@ def grasp_poses(geometry, name, P, heading, kinds, rng, n_side=5):
                 if across + GRASP_CLEARANCE <= opening:
                     out.append(("top", trans(x, y, zt) @ rz(yaw_o + k * math.pi / 2) @ DOWN))
     return out
+
+
+SEAT_GAP = 0.001  # m: a side-grasped cylinder clears the hand, opened for it, by this much
+SEAT_STEP, SEAT_MAX = 0.002, 0.03  # m: the tool point backs off from the axis in these steps, at most this far
+
+
+def seat(robot, radius: float, height: float) -> float:
+    """How far behind a side-grasped cylinder's axis the tool point stands (m) so that every arm's hand,
+    opened OPEN_CLEARANCE wider than the cylinder, clears it by SEAT_GAP: 0 for a hand whose palm is far
+    enough behind its tool point (PR2, Panda, UR5, TIAGo); the Kinova's palm reaches 0.4 mm into a 0.04 m
+    cylinder centred at its tool point, so every such grasp touched the object it was about to pick.
+    Measured once per robot and size (Coal distances at the robot's home, where only the hand matters)."""
+    cache = robot.__dict__.setdefault("_seats", {})
+    key = (round(radius, 6), round(height, 6))
+    if key not in cache:
+        import coal
+        import pinocchio as pin
+
+        cylinder = coal.Cylinder(radius, height)
+        steps = [k * SEAT_STEP for k in range(int(round(SEAT_MAX / SEAT_STEP)) + 1)]
+        need = 0.0
+        for arm in robot.arms:
+            q = robot.set_gripper_opening(robot.default_q(), arm, 2 * radius + OPEN_CLEARANCE)
+            gm = robot.collision_model
+            data, gdata = robot.model.createData(), pin.GeometryData(gm)
+            pin.updateGeometryPlacements(robot.model, data, gm, gdata, q)
+            hand = [(g.geometry, coal.Transform3s(gdata.oMg[i].rotation, gdata.oMg[i].translation))
+                    for i, g in enumerate(gm.geometryObjects) if g.name in set(robot.gripper_links(arm))]
+            tool = robot.tool_pose(q, arm)
+
+            def clear(back):
+                T = tool @ trans(back, 0, 0)  # the cylinder's axis ``back`` ahead of the tool point
+                at = coal.Transform3s(T[:3, :3], T[:3, 3])
+                return all(coal.distance(g, M, cylinder, at, coal.DistanceRequest(), coal.DistanceResult()) >= SEAT_GAP
+                           for g, M in hand)
+
+            need = max(need, next((b for b in steps if clear(b)), 0.0))  # none clear: the grasp as it was
+        cache[key] = need
+    return cache[key]
 
 
 def check_graspable(problem, name):
