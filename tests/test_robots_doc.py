@@ -47,6 +47,7 @@ def test_the_worked_example_passes_robot_check(tmp_path, entry_point):  # noqa: 
     assert arm["tool_frame"] == "j2s6s200_end_effector" and arm["approach"] == "+x"
     assert arm["gripper"]["measured"] and arm["gripper"]["open"] == pytest.approx(0.122, abs=0.002)  # as the page says
     assert arm["gripper"]["closed"] < 0  # the fingers the URDF fixes close
+    assert arm["gripper"]["fixed_in_urdf"] == ["j2s6s200_joint_finger_1", "j2s6s200_joint_finger_2"]
     assert report["self_collision"]["source"] == "sampled"
 
 

@@ -300,17 +300,17 @@ def check_names(desc: RobotDescription, model, collision_model) -> None:
             need(link, links, f"self_collision.skip[{k}][{i}]", "link")
 
 
-def urdf_text(desc: RobotDescription) -> str | None:
-    """The URDF's text with the finger joints that it declares ``fixed`` made revolute within their
-    ``<limit>`` (example-robot-data's Kinova: its fingers are fixed, spread open, though the real hand
-    closes); None when every finger joint already moves (the file is then read as it is)."""
+def urdf_text(desc: RobotDescription) -> tuple[str | None, tuple[str, ...]]:
+    """(text, joints): the URDF's text with the finger joints that it declares ``fixed`` made revolute within
+    their ``<limit>`` (example-robot-data's Kinova: its fingers are fixed, spread open, though the real hand
+    closes), and those joints; (None, ()) when every finger joint already moves (the file is read as it is)."""
     import xml.etree.ElementTree as ET
 
     wanted = {j: k for k, arm in enumerate(desc.arms) for j, _ in arm.gripper.joints}
     if not wanted:
-        return None
+        return None, ()
     root = ET.fromstring(desc.urdf.read_bytes())
-    changed = False
+    changed = []
     for joint in root.iter("joint"):
         name = joint.get("name")
         if name not in wanted or joint.get("type") != "fixed":
@@ -321,8 +321,8 @@ def urdf_text(desc: RobotDescription) -> str | None:
                             "fixed and gives it no <limit lower=... upper=...> to move within: give a finger joint "
                             "that moves, or leave gripper.joints out (fixed fingers)")
         joint.set("type", "revolute")
-        changed = True
-    return ET.tostring(root, encoding="unicode") if changed else None
+        changed.append(name)
+    return (ET.tostring(root, encoding="unicode"), tuple(changed)) if changed else (None, ())
 
 
 def _like(name: str, known, what: str) -> str:

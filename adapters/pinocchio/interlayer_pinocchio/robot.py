@@ -57,7 +57,7 @@ class Robot:
 
         desc = self.description = description
         self.urdf_path, self.srdf_path, self.package_dirs = desc.urdf, desc.srdf, desc.package_dirs
-        text = urdf_text(desc)  # None: the file as it is
+        text, self.unfixed_joints = urdf_text(desc)  # None: the file as it is
         if text is None:
             self.model, self.collision_model = pin.buildModelsFromUrdf(
                 str(desc.urdf), package_dirs=list(desc.package_dirs), root_joint=pin.JointModelPlanar(),
