@@ -77,34 +77,22 @@ def seat(robot, radius: float, height: float) -> float:
     opened OPEN_CLEARANCE wider than the cylinder, clears it by SEAT_GAP: 0 for a hand whose palm is far
     enough behind its tool point (PR2, Panda, UR5, TIAGo); the Kinova's palm reaches 0.4 mm into a 0.04 m
     cylinder centred at its tool point, so every such grasp touched the object it was about to pick.
-    Measured once per robot and size (Coal distances at the robot's home, where only the hand matters)."""
-    cache = robot.__dict__.setdefault("_seats", {})
+    It depends on the hand and the cylinder only: measured once per robot and size."""
+    known = robot.__dict__.setdefault("_seats", {})
     key = (round(radius, 6), round(height, 6))
-    if key not in cache:
-        import coal
-        import pinocchio as pin
+    if key not in known:
+        from interlayer_pinocchio import CollisionWorld
 
-        cylinder = coal.Cylinder(radius, height)
+        cw = CollisionWorld(robot)
+        cw.add_cylinder("c", radius + SEAT_GAP, height + 2 * SEAT_GAP, np.eye(4), movable=True)
+        q = robot.default_q()
+        for a in robot.arms:
+            q = robot.set_gripper_opening(q, a, 2 * radius + OPEN_CLEARANCE)
         steps = [k * SEAT_STEP for k in range(int(round(SEAT_MAX / SEAT_STEP)) + 1)]
-        need = 0.0
-        for arm in robot.arms:
-            q = robot.set_gripper_opening(robot.default_q(), arm, 2 * radius + OPEN_CLEARANCE)
-            gm = robot.collision_model
-            data, gdata = robot.model.createData(), pin.GeometryData(gm)
-            pin.updateGeometryPlacements(robot.model, data, gm, gdata, q)
-            hand = [(g.geometry, coal.Transform3s(gdata.oMg[i].rotation, gdata.oMg[i].translation))
-                    for i, g in enumerate(gm.geometryObjects) if g.name in set(robot.gripper_links(arm))]
-            tool = robot.tool_pose(q, arm)
-
-            def clear(back):
-                T = tool @ trans(back, 0, 0)  # the cylinder's axis ``back`` ahead of the tool point
-                at = coal.Transform3s(T[:3, :3], T[:3, 3])
-                return all(coal.distance(g, M, cylinder, at, coal.DistanceRequest(), coal.DistanceResult()) >= SEAT_GAP
-                           for g, M in hand)
-
-            need = max(need, next((b for b in steps if clear(b)), 0.0))  # none clear: the grasp as it was
-        cache[key] = need
-    return cache[key]
+        # none clear within SEAT_MAX: the grasp at the axis, as before (its approach will say what it touches)
+        known[key] = next((b for b in steps if not any(cw.hand_collides(q, a, trans(-b, 0, 0), movables=True)
+                                                       for a in robot.arms)), 0.0)
+    return known[key]
 
 
 def check_graspable(problem, name):
