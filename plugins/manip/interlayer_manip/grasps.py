@@ -68,33 +68,6 @@ def grasp_poses(geometry, name, P, heading, kinds, rng, n_side=5):
     return out
 
 
-SEAT_GAP = 0.001  # m: a side-grasped cylinder clears the hand, opened for it, by this much
-SEAT_STEP, SEAT_MAX = 0.002, 0.03  # m: the tool point backs off from the axis in these steps, at most this far
-
-
-def seat(robot, radius: float, height: float) -> float:
-    """How far behind a side-grasped cylinder's axis the tool point stands (m) so that every arm's hand,
-    opened OPEN_CLEARANCE wider than the cylinder, clears it by SEAT_GAP: 0 for a hand whose palm is far
-    enough behind its tool point (PR2, Panda, UR5, TIAGo); the Kinova's palm reaches 0.4 mm into a 0.04 m
-    cylinder centred at its tool point, so every such grasp touched the object it was about to pick.
-    It depends on the hand and the cylinder only: measured once per robot and size."""
-    known = robot.__dict__.setdefault("_seats", {})
-    key = (round(radius, 6), round(height, 6))
-    if key not in known:
-        from interlayer_pinocchio import CollisionWorld
-
-        cw = CollisionWorld(robot)
-        cw.add_cylinder("c", radius + SEAT_GAP, height + 2 * SEAT_GAP, np.eye(4), movable=True)
-        q = robot.default_q()
-        for a in robot.arms:
-            q = robot.set_gripper_opening(q, a, 2 * radius + OPEN_CLEARANCE)
-        steps = [k * SEAT_STEP for k in range(int(round(SEAT_MAX / SEAT_STEP)) + 1)]
-        # none clear within SEAT_MAX: the grasp at the axis, as before (its approach will say what it touches)
-        known[key] = next((b for b in steps if not any(cw.hand_collides(q, a, trans(-b, 0, 0), movables=True)
-                                                       for a in robot.arms)), 0.0)
-    return known[key]
-
-
 def check_graspable(problem, name):
     """Raise Infeasible when no grasp of the allowed kinds fits the gripper and the goal needs the object."""
     geometry = problem.geometry
@@ -253,3 +226,30 @@ def _yaw(T):
     if abs(x[2]) > 0.7:  # pointing down: use the closing axis
         return math.atan2(T[1, 1], T[0, 1]) - math.pi / 2
     return math.atan2(x[1], x[0])
+
+
+SEAT_GAP = 0.001  # m: a side-grasped cylinder clears the hand, opened for it, by this much
+SEAT_STEP, SEAT_MAX = 0.002, 0.03  # m: the tool point backs off from the axis in these steps, at most this far
+
+
+def seat(robot, radius: float, height: float) -> float:
+    """How far behind a side-grasped cylinder's axis the tool point stands (m) so that every arm's hand,
+    opened OPEN_CLEARANCE wider than the cylinder, clears it by SEAT_GAP: 0 for a hand whose palm is far
+    enough behind its tool point (PR2, Panda, UR5, TIAGo); the Kinova's palm reaches 0.4 mm into a 0.04 m
+    cylinder centred at its tool point, so every such grasp touched the object it was about to pick.
+    It depends on the hand and the cylinder only: measured once per robot and size."""
+    known = robot.__dict__.setdefault("_seats", {})
+    key = (round(radius, 6), round(height, 6))
+    if key not in known:
+        from interlayer_pinocchio import CollisionWorld
+
+        cw = CollisionWorld(robot)
+        cw.add_cylinder("c", radius + SEAT_GAP, height + 2 * SEAT_GAP, np.eye(4), movable=True)
+        q = robot.default_q()
+        for a in robot.arms:
+            q = robot.set_gripper_opening(q, a, 2 * radius + OPEN_CLEARANCE)
+        steps = [k * SEAT_STEP for k in range(int(round(SEAT_MAX / SEAT_STEP)) + 1)]
+        # none clear within SEAT_MAX: the grasp at the axis, as before (its approach will say what it touches)
+        known[key] = next((b for b in steps if not any(cw.hand_collides(q, a, trans(-b, 0, 0), movables=True)
+                                                       for a in robot.arms)), 0.0)
+    return known[key]
