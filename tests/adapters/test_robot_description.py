@@ -209,3 +209,46 @@ def test_gripper_opening_given_and_limits_overridden(tmp_path):
     vel, acc = robot.velocity_limits("arm_arm"), robot.acceleration_limits("arm_arm")
     assert vel[0] == 1.5 and vel[1] == pytest.approx(2.175)  # given, else the URDF's
     assert acc[0] == 3.0 and acc[1] == 7.0 and acc[2] == pytest.approx(4.35)  # given, else twice the velocity
+
+
+# -- a hand whose URDF fixes its fingers (example-robot-data's Kinova) ------------------------------------
+
+from kinova import kinova as _kinova  # noqa: E402  (tests/kinova.py)
+
+
+def test_finger_joints_the_urdf_fixes_move_when_the_gripper_names_them(tmp_path):
+    fixed = Robot.load(_kinova(tmp_path, joints=""))
+    assert fixed.gripper_range("arm")[0] == fixed.gripper_range("arm")[1] == pytest.approx(0.122, abs=0.002)
+    robot = Robot.load(_kinova(tmp_path))
+    assert robot.model.nv == fixed.model.nv + 2  # the two finger joints
+    closed, wide = robot.gripper_range("arm")
+    assert wide == pytest.approx(0.122, abs=0.002) and closed < 0.0  # open as the URDF draws them; they close
+    q = robot.set_gripper_opening(robot.default_q(), "arm", 0.09)
+    assert robot.gripper_opening(q, "arm") == pytest.approx(0.09, abs=1e-3)
+    hand = {g.parentJoint for g in robot.collision_model.geometryObjects if "finger" in g.name}
+    assert hand == set(robot.group("arm_gripper").joint_ids)  # the fingers ride on the joints made movable
+
+
+def test_a_fixed_finger_joint_without_limits_is_refused_naming_it(tmp_path):
+    from interlayer.errors import UserError
+    from interlayer_pinocchio import describe
+
+    source = describe(_kinova(tmp_path)).urdf.read_text()
+    start = source.index('<joint name="j2s6s200_joint_finger_1"')
+    limit = source.index("<limit", start)
+    (tmp_path / "kinova.urdf").write_text(source[:limit] + source[source.index("/>", limit) + 2:])
+    with pytest.raises(UserError) as info:
+        Robot.load(_kinova(tmp_path, urdf="kinova.urdf"))
+    assert str(info.value).startswith("kinova.toml: arms[0].gripper.joints.j2s6s200_joint_finger_1: the URDF declares "
+                                      "'j2s6s200_joint_finger_1' fixed and gives it no <limit"), str(info.value)
+
+
+def test_home_angles_of_continuous_joints_are_wrapped_into_the_arm_space(tmp_path):
+    robot = Robot.load(_kinova(tmp_path))
+    home = robot.home("arm")  # Kinova's own home: 4.80 and 4.20 rad on continuous joints 1 and 4
+    assert home[0] == pytest.approx(4.80 - 2 * np.pi) and home[3] == pytest.approx(4.20 - 2 * np.pi)
+    assert home[1:3] == (2.92, 1.00)  # revolute joints keep their values (joint 2's range is [0.82, 5.46])
+    g = robot.group("arm_arm")
+    assert all(lo <= v <= hi for v, lo, hi in zip(home, g.lower, g.upper))
+    np.testing.assert_allclose(robot.tool_pose(robot.default_q(), "arm"),
+                               robot.tool_pose(robot.set(robot.default_q(), "arm_arm", [4.80, 2.92, 1.00, 4.20, 1.44, 1.32]), "arm"), atol=1e-12)

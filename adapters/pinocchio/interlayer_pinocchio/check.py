@@ -20,7 +20,9 @@ def robot_report(name_or_path) -> dict:
             "approach": axis[a.approach], "closing": axis[a.closing].lstrip("+"),
             "reach": round(robot.reach(a.name)[1], 3),
             "gripper": {"joints": [j for j, _ in a.gripper.joints], "closed": round(closed, 4) + 0.0,
-                        "open": round(widest, 4) + 0.0, "measured": a.gripper.fingers is not None},
+                        "open": round(widest, 4) + 0.0, "measured": a.gripper.fingers is not None,
+                        # finger joints the URDF declares fixed, moved within their <limit>
+                        "fixed_in_urdf": [j for j, _ in a.gripper.joints if j in robot.unfixed_joints]},
         })
     gm = robot.collision_model
     n = len(gm.geometryObjects)

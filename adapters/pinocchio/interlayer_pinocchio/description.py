@@ -16,7 +16,7 @@ from pathlib import Path
 from interlayer.errors import UserError, closest
 
 __all__ = ["RobotDescription", "ArmDescription", "GripperDescription", "describe", "shipped_robots", "check_names",
-           "resolve_resource"]
+           "resolve_resource", "urdf_text"]
 
 SHIPPED = Path(__file__).with_name("robots")
 _ERD = "example-robot-data:"
@@ -298,6 +298,31 @@ def check_names(desc: RobotDescription, model, collision_model) -> None:
     for k, pair in enumerate(desc.skip or ()):
         for i, link in enumerate(pair):
             need(link, links, f"self_collision.skip[{k}][{i}]", "link")
+
+
+def urdf_text(desc: RobotDescription) -> tuple[str | None, tuple[str, ...]]:
+    """(text, joints): the URDF's text with the finger joints that it declares ``fixed`` made revolute within
+    their ``<limit>`` (example-robot-data's Kinova: its fingers are fixed, spread open, though the real hand
+    closes), and those joints; (None, ()) when every finger joint already moves (the file is read as it is)."""
+    import xml.etree.ElementTree as ET
+
+    wanted = {j: k for k, arm in enumerate(desc.arms) for j, _ in arm.gripper.joints}
+    if not wanted:
+        return None, ()
+    root = ET.fromstring(desc.urdf.read_bytes())
+    changed = []
+    for joint in root.iter("joint"):
+        name = joint.get("name")
+        if name not in wanted or joint.get("type") != "fixed":
+            continue
+        limit = joint.find("limit")
+        if limit is None or limit.get("lower") is None or limit.get("upper") is None:
+            raise UserError(f"{desc.where(f'arms[{wanted[name]}].gripper.joints.{name}')}: the URDF declares {name!r} "
+                            "fixed and gives it no <limit lower=... upper=...> to move within: give a finger joint "
+                            "that moves, or leave gripper.joints out (fixed fingers)")
+        joint.set("type", "revolute")
+        changed.append(name)
+    return (ET.tostring(root, encoding="unicode"), tuple(changed)) if changed else (None, ())
 
 
 def _like(name: str, known, what: str) -> str:

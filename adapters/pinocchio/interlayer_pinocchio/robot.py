@@ -13,6 +13,8 @@ Two coordinate systems are used on purpose:
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pinocchio as pin
 
@@ -49,15 +51,21 @@ class Robot:
         x and y (m)."""
         from interlayer.errors import UserError
 
-        from .description import check_names
+        from .description import check_names, urdf_text
         from .meshes import hull_big_meshes
         from .selfcollision import skip_pairs
 
         desc = self.description = description
         self.urdf_path, self.srdf_path, self.package_dirs = desc.urdf, desc.srdf, desc.package_dirs
-        self.model, self.collision_model = pin.buildModelsFromUrdf(
-            str(desc.urdf), package_dirs=list(desc.package_dirs), root_joint=pin.JointModelPlanar(),
-            geometry_types=[pin.GeometryType.COLLISION])
+        text, self.unfixed_joints = urdf_text(desc)  # None: the file as it is
+        if text is None:
+            self.model, self.collision_model = pin.buildModelsFromUrdf(
+                str(desc.urdf), package_dirs=list(desc.package_dirs), root_joint=pin.JointModelPlanar(),
+                geometry_types=[pin.GeometryType.COLLISION])
+        else:  # the geometries hang on links, which keep their names: read from the file (relative mesh paths)
+            self.model = pin.buildModelFromXML(text, pin.JointModelPlanar())
+            self.collision_model = pin.buildGeomFromUrdf(self.model, str(desc.urdf), pin.GeometryType.COLLISION,
+                                                         package_dirs=list(desc.package_dirs))
         check_names(desc, self.model, self.collision_model)
         hull_big_meshes(self.collision_model)  # before the self-collision pairs are sampled against them
         self.base_height = float(desc.base_height if base_height is None else base_height)
@@ -99,6 +107,7 @@ class Robot:
                     if not circ and not lo - 1e-9 <= v <= hi + 1e-9:
                         raise UserError(f"{desc.where(f'arms[{k}].{field}[{i}]')}: {v} is outside {a.joints[i]}'s "
                                         f"range [{lo:.4g}, {hi:.4g}]")
+        self._postures = {a.name: (self._posture(a, a.home), self._posture(a, a.reach_seed or a.home)) for a in desc.arms}
         every_joint = [self.model.names[j] for j in range(1, self.model.njoints)]
         self._all = joint_group(self.model, "all", every_joint, self.base_limits)
         self._neutral = pin.neutral(self.model)
@@ -194,12 +203,18 @@ class Robot:
     # -- the description's postures -------------------------------------------------------------
     def home(self, arm: str) -> tuple[float, ...]:
         """The arm's resting / driving posture (arm vector)."""
-        return self._arm[arm].home
+        return self._postures[arm][0]
 
     def reach_seed(self, arm: str) -> tuple[float, ...]:
         """The first IK seed for reaching forward at table height (default: home)."""
-        a = self._arm[arm]
-        return a.home if a.reach_seed is None else a.reach_seed
+        return self._postures[arm][1]
+
+    def _posture(self, arm, values) -> tuple[float, ...]:
+        """``values`` with a continuous joint's angle outside (-pi, pi] wrapped into it: arm spaces bound those
+        joints to [-pi, pi] (Kinova's own home posture has 4.80 rad: a planner refused it as a goal)."""
+        circular = self.groups[f"{arm.name}_arm"].circular
+        return tuple(math.atan2(math.sin(v), math.cos(v)) if c and not -math.pi < v <= math.pi else float(v)
+                     for v, c in zip(values, circular))
 
     def carry_poses(self, arm: str) -> tuple[tuple[float, float, float, float], ...]:
         """Tool poses (x, y, z, yaw) in the base frame to carry an object in, tried in order (may be empty)."""

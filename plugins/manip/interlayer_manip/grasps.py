@@ -50,10 +50,11 @@ def grasp_poses(geometry, name, P, heading, kinds, rng, n_side=5):
             if 2 * o.size[0] + GRASP_CLEARANCE <= opening:
                 offs = [0.0] + [float(v) for v in rng.uniform(-spread, spread, size=n_side - 1)]
                 depth = None if geometry.robot.mobile else _pitched_depth(geometry.robot, o.size[0], h, FIXED_PITCH)
+                back = trans(-seat(geometry.robot, o.size[0], h), 0, 0)
                 for d in offs:  # a fixed base's pitched grasp first: its wide hand passes above the neighbours
                     if depth is not None:
                         out.append(("side", trans(x, y, z + h / 2 - depth) @ rz(heading + d) @ ry(FIXED_PITCH)))
-                    out.append(("side", trans(x, y, zs) @ rz(heading + d)))
+                    out.append(("side", trans(x, y, zs) @ rz(heading + d) @ back))
         else:
             for k in range(4):
                 yaw = yaw_o + k * math.pi / 2
@@ -99,18 +100,13 @@ def ry(a: float) -> np.ndarray:
 
 def _pitched_depth(robot, radius: float, height: float, pitch: float):
     """How far below its top a side grasp of a cylinder pitched down by ``pitch`` holds it: the deepest of
-    6 .. 2 cm (the pads' centre below the rim) at which the opened hand clears the cylinder itself, or None.
+    6 .. 2 cm (the pads' centre below the rim) at which the hand, opened as for the approach, clears the
+    cylinder itself, or None.
     It depends on the hand and the cylinder only: measured once per robot and size."""
     known = robot.__dict__.setdefault("_pitched_depths", {})
     key = (round(radius, 6), round(height, 6), pitch)
     if key not in known:
-        from interlayer_pinocchio import CollisionWorld
-
-        cw = CollisionWorld(robot)
-        cw.add_cylinder("c", radius, height, np.eye(4), movable=True)
-        q = robot.open_gripper(robot.default_q(), robot.arms[0])
-        for a in robot.arms[1:]:
-            q = robot.open_gripper(q, a)
+        cw, q = _hand_opened_for(robot, radius, height)
         known[key] = next((d for d in (0.06, 0.05, 0.04, 0.03, 0.02) if d < height / 2 and not any(
             cw.hand_collides(q, a, trans(0, 0, height / 2 - d) @ ry(pitch), movables=True) for a in robot.arms)), None)
     return known[key]
@@ -274,3 +270,37 @@ def _yaw(T):
     if abs(x[2]) > 0.7:  # pointing down: use the closing axis
         return math.atan2(T[1, 1], T[0, 1]) - math.pi / 2
     return math.atan2(x[1], x[0])
+
+
+SEAT_GAP = 0.001  # m: a side-grasped cylinder clears the hand, opened for it, by this much
+SEAT_STEP, SEAT_MAX = 0.002, 0.03  # m: the tool point backs off from the axis in these steps, at most this far
+
+
+def _hand_opened_for(robot, radius: float, height: float, gap: float = 0.0):
+    """A collision world holding a cylinder (grown by ``gap``) at the origin, and a configuration whose hands
+    are opened for it as an approach opens them (OPEN_CLEARANCE wider than the cylinder)."""
+    from interlayer_pinocchio import CollisionWorld
+
+    cw = CollisionWorld(robot)
+    cw.add_cylinder("c", radius + gap, height + 2 * gap, np.eye(4), movable=True)
+    q = robot.default_q()
+    for a in robot.arms:
+        q = robot.set_gripper_opening(q, a, 2 * radius + OPEN_CLEARANCE)
+    return cw, q
+
+
+def seat(robot, radius: float, height: float) -> float:
+    """How far behind a side-grasped cylinder's axis the tool point stands (m) so that every arm's hand,
+    opened OPEN_CLEARANCE wider than the cylinder, clears it by SEAT_GAP: 0 for a hand whose palm is far
+    enough behind its tool point (PR2, Panda, UR5, TIAGo); the Kinova's palm reaches 0.4 mm into a 0.04 m
+    cylinder centred at its tool point, so every such grasp touched the object it was about to pick.
+    It depends on the hand and the cylinder only: measured once per robot and size."""
+    known = robot.__dict__.setdefault("_seats", {})
+    key = (round(radius, 6), round(height, 6))
+    if key not in known:
+        cw, q = _hand_opened_for(robot, radius, height, SEAT_GAP)
+        steps = [k * SEAT_STEP for k in range(int(round(SEAT_MAX / SEAT_STEP)) + 1)]
+        # none clear within SEAT_MAX: the grasp at the axis, as before (its approach will say what it touches)
+        known[key] = next((b for b in steps if not any(cw.hand_collides(q, a, trans(-b, 0, 0), movables=True)
+                                                       for a in robot.arms)), 0.0)
+    return known[key]
