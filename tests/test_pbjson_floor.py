@@ -52,17 +52,21 @@ def test_check_lists_each_floor_obstacle_and_what_the_robot_can_do_with_it(tmp_p
     assert {("Pushable", "blocker"), ("Pushable", "stick")} <= p.init
 
 
-@pytest.fixture(scope="module")
-def pushed(tmp_path_factory):
-    """The corridor solved (seed 0) and written: (result, its run folder, its trajectory)."""
-    tmp = tmp_path_factory.mktemp("pushed")
-    path = tmp / "corridor.json"
-    path.write_text(json.dumps(corridor()))
+def solved(tmp, name, data):
+    """``data`` solved (seed 0) and written: (result, its run folder, its trajectory or None)."""
+    path = tmp / f"{name}.json"
+    path.write_text(json.dumps(data))
     result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=120"])
     out = tmp / "out"
     if result.status == "solved":
         api.write_outputs(result, out)
     return result, out, json.loads((out / "trajectory.json").read_text()) if out.is_dir() else None
+
+
+@pytest.fixture(scope="module")
+def pushed(tmp_path_factory):
+    """The corridor solved (seed 0) and written: (result, its run folder, its trajectory)."""
+    return solved(tmp_path_factory.mktemp("pushed"), "corridor", corridor())
 
 
 def test_a_floor_box_in_the_way_is_pushed_out_of_it_and_only_that_one(pushed):
@@ -82,10 +86,12 @@ def test_a_floor_box_in_the_way_is_pushed_out_of_it_and_only_that_one(pushed):
     assert segs and {s["object"] for s in segs} == {"blocker"}
 
 
-def _tampered(out, traj, tmp_path, edit):
+def _tampered(out, traj, tmp_path, edit, every=False):
+    """The validator's errors on the run ``out`` with its first push segment (``every``: each one) edited."""
     bad = copy.deepcopy(traj)
-    seg = next(s for step in bad["steps"] for s in step["segments"] if s["kind"] == "push")
-    edit(seg)
+    segs = [s for step in bad["steps"] for s in step["segments"] if s["kind"] == "push"]
+    for seg in segs if every else segs[:1]:
+        edit(seg)
     target = tmp_path / "bad"
     target.mkdir(parents=True)
     for f in out.iterdir():
@@ -183,3 +189,63 @@ def test_of_the_floor_obstacles_a_wandering_drive_names_the_one_in_the_way_is_ke
     assert g._cut_off(w, w.base, goal)
     assert g.one_blocker(w, goal, ("spare", "blocker")) == ("blocker",)
     assert g.one_blocker(w, goal, ("spare",)) == ("spare",)  # nothing better to say
+
+
+def two_rows():
+    """The corridor with two boards across it, ``near`` (x = 0) and ``far`` (x = 0.25, 0.15 m behind it):
+    pushed alone, ``near`` runs into ``far`` before the base is through; ``far`` cannot be reached before
+    ``near`` is gone (the base cannot stand between them) and no board can go sideways (the walls). As
+    the folder's wall_namo_3 and decision_wall_namo_3 (two rows of posts 0.25 m apart)."""
+    data = corridor(spare=False)
+    data["bodies"].append(_body("far", (0.25, 0.0, 0.001), [_box((0.05, 0.3, 0.4), (0.0, 0.0, 0.4), color=(1, 0, 0))]))
+    data["task"]["floor_object_names"].append("far")
+    next(b for b in data["bodies"] if b["name"] == "blocker")["name"] = "near"
+    data["task"]["floor_object_names"][0] = "near"
+    return data
+
+
+def test_a_push_carries_along_what_it_meets_head_on(tmp_path, monkeypatch):
+    """push_pieces: ``near`` pushed 0.6 m meets ``far`` after about 0.15 m; from there both move with the
+    base, one piece per chain, and they end touching, in line (the task level knows it as InLine)."""
+    from dataclasses import replace
+
+    from interlayer_pbjson import world as pbworld
+    from interlayer_pbjson.world import PUSH_GAP
+
+    p = load(tmp_path, two_rows())
+    assert ("InLine", "near", "far") in p.init and ("InLine", "far", "near") in p.init
+    g = p.geometry
+    w = g.tucked(g.initial_world())
+    d = g.contact_distance(w, "near", 0.0) + PUSH_GAP
+    start = (-d, 0.0, 0.0)
+    w = replace(w, base=start)
+    after, why, pieces = g.push_pieces(w, "near", start, (start[0] + 0.6, 0.0, 0.0))
+    assert why is None, why
+    assert [chain for _, _, chain, _ in pieces] == [("near",), ("near", "far")]
+    assert pieces[0][1][0] - start[0] == pytest.approx(0.15, abs=0.003)  # where near touches far
+    near, far = after.objects["near"][:3, 3], after.objects["far"][:3, 3]
+    assert near[0] == pytest.approx(0.6, abs=1e-9) and far[0] - near[0] == pytest.approx(0.1, abs=0.0015)
+    assert far[1] == pytest.approx(0.0, abs=1e-9)
+    # one object per push (as before): far is in the way
+    monkeypatch.setattr(pbworld, "MAX_CHAIN", 1)
+    _, why, _ = g.push_pieces(w, "near", start, (start[0] + 0.6, 0.0, 0.0))
+    assert why is not None and why.objects == ("far",)
+
+
+@pytest.fixture(scope="module")
+def chained(tmp_path_factory):
+    return solved(tmp_path_factory.mktemp("chained"), "two_rows", two_rows())
+
+
+def test_two_boards_in_a_row_are_pushed_out_of_the_corridor_together(chained, tmp_path):
+    """Before pushes carried what they meet, this scene timed out (120 s: push(near) ran into far, far could
+    not be reached, epoch after epoch). Now near is pushed, far moves with it from where they touch, the
+    base drives through; the validator re-checks the chain, and refuses the push without it."""
+    result, out, traj = chained
+    assert result.status == "solved", result.reason
+    assert [s.action for s in result.plan][-1] == "go_to" and {s.args for s in result.plan if s.action == "push"} == {("near",)}
+    assert api.validate(out) == []
+    segs = [s for step in traj["steps"] for s in step["segments"] if s["kind"] == "push"]
+    assert any([c["object"] for c in s.get("chain", [])] == ["far"] for s in segs)
+    errors = _tampered(out, traj, tmp_path, lambda seg: seg.pop("chain", None), every=True)
+    assert errors and "runs into far" in errors[0]
