@@ -249,3 +249,30 @@ def test_two_boards_in_a_row_are_pushed_out_of_the_corridor_together(chained, tm
     assert any([c["object"] for c in s.get("chain", [])] == ["far"] for s in segs)
     errors = _tampered(out, traj, tmp_path, lambda seg: seg.pop("chain", None), every=True)
     assert errors and "runs into far" in errors[0]
+
+
+def pole_corridor():
+    """A corridor 0.8 m wide (the base, 0.67 m, passes with 6 cm to spare) with a pole of 7 cm square and
+    1.2 m tall (a floor obstacle the gripper can hold) in its middle: 0.365 m free on either side."""
+    data = corridor(spare=False)
+    for b in data["bodies"]:
+        if b["name"] in ("north", "south"):
+            b["point"]["y"] = 0.41 if b["name"] == "north" else -0.41
+        elif b["name"] == "west":
+            b["links"] = [[_box((0.01, 0.4, WALL_H), (0.0, 0.0, WALL_H))]]
+    data["bodies"] = [b for b in data["bodies"] if b["name"] != "blocker"]
+    data["bodies"].append(_body("pole", (-0.8, 0.0, 0.001), [_box((0.035, 0.035, 0.6), (0.0, 0.0, 0.6), color=(1, 0, 0))]))
+    data["task"].update(floor_object_names=["pole"], goal_config=[1.5, 0.0, 0.0])
+    data["robots"][0]["point"]["x"] = -1.6
+    return data
+
+
+def test_a_floor_obstacle_the_gripper_holds_is_picked_out_of_the_way(tmp_path):
+    """The final drive fails on the pole; picking it clears the way as a push would (pick, like push, makes
+    it FinalClear), and the robot carries it to the goal. Validated."""
+    result, out, traj = solved(tmp_path, "pole", pole_corridor())
+    assert result.status == "solved", result.reason
+    assert [s.action for s in result.plan] == ["pick", "go_to"] and result.plan[0].args[0] == "pole"
+    assert "(not (FinalClear pole))" in [logic.literal_str(f) for f in result.learned_facts]
+    assert api.validate(out) == []
+    assert result.problem.objects["pole"] == "item"
