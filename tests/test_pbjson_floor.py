@@ -276,3 +276,26 @@ def test_a_floor_obstacle_the_gripper_holds_is_picked_out_of_the_way(tmp_path):
     assert "(not (FinalClear pole))" in [logic.literal_str(f) for f in result.learned_facts]
     assert api.validate(out) == []
     assert result.problem.objects["pole"] == "item"
+
+
+def test_a_floor_obstacle_met_off_centre_stops_the_push_and_is_named(tmp_path):
+    """``far`` moved aside so that ``near`` meets it off its centre line: it does not come along. The
+    refinement's check names it (the task planner learns PushBlocked); the sampler's coarse check, which
+    leaves movables to the refinement, still offers the push (as before chains)."""
+    from dataclasses import replace
+
+    from interlayer_pbjson.world import PUSH_GAP
+
+    data = two_rows()
+    far = next(b for b in data["bodies"] if b["name"] == "far")
+    far["point"]["y"] = 0.35  # 0.3 m wide now, from y = 0.2 to 0.5: near (to 0.3) meets its edge
+    far["links"] = [[_box((0.05, 0.15, 0.4), (0.0, 0.0, 0.4), color=(1, 0, 0))]]
+    g = load(tmp_path, data).geometry
+    w = g.tucked(g.initial_world())
+    start = (-g.contact_distance(w, "near", 0.0) - PUSH_GAP, 0.0, 0.0)
+    w = replace(w, base=start)
+    end = (start[0] + 0.6, 0.0, 0.0)
+    _, why, _ = g.push_pieces(w, "near", start, end)
+    assert why is not None and why.kind == "obstruction" and why.objects == ("far",)
+    after, why, pieces = g.push_pieces(w, "near", start, end, movables=False)
+    assert why is None and [chain for _, _, chain, _ in pieces] == [("near",)]

@@ -343,13 +343,13 @@ class PBGeometry(ManipulationGeometry):
         chain, s, pieces, w = (obj,), tuple(start), [], world
         while True:
             after, why, last, floor = self._sweep(w, chain, s, end, fine, True)
-            if why is None or (not movables and not floor and why.kind == "obstruction"):
-                if why is not None:  # only movables the coarse test does not ask about: go on as if clear
-                    after, why = self.push_line(w, obj, s, end, fine, movables=False, chain=chain[1:])
-                    if why:
-                        return world, why, pieces
+            joins = bool(floor) and len(chain) + len(floor) <= MAX_CHAIN and all(self._head_on(w, chain, s, f) for f in floor)
+            if why is not None and not joins and not movables and why.kind == "obstruction":
+                # movables the coarse test does not ask about (the refinement learns them): on as if clear
+                after, why = self.push_line(w, obj, s, end, fine, movables=False, chain=chain[1:])
+            if why is None:
                 return after, None, [*pieces, (s, tuple(float(v) for v in end), chain, w)]
-            if not floor or len(chain) + len(floor) > MAX_CHAIN or not all(self._head_on(w, chain, s, f) for f in floor):
+            if not joins:
                 return world, why, pieces
             touch = self._touching(w, chain, s, last, floor, fine)
             if math.dist(touch[:2], s[:2]) > 1e-9:  # (a chain that touches at the start moves as one at once)
