@@ -299,3 +299,19 @@ def test_a_floor_obstacle_met_off_centre_stops_the_push_and_is_named(tmp_path):
     assert why is not None and why.kind == "obstruction" and why.objects == ("far",)
     after, why, pieces = g.push_pieces(w, "near", start, end, movables=False)
     assert why is None and [chain for _, _, chain, _ in pieces] == [("near",)]
+
+
+def test_a_push_forgets_the_drive_facts_of_what_it_may_carry_along(tmp_path):
+    """At the task level a push of near forgets what was learned about far (InLine: near's push may carry
+    it), not about an obstacle out of its line."""
+    from interlayer.abstraction import abstract
+    from interlayer.domain import GroundStep
+
+    data = two_rows()
+    data["bodies"].append(_body("aside", (-1.2, 0.45, 0.001), [_box((0.05, 0.05, 0.4), (0.0, 0.0, 0.4), color=(1, 0, 0))]))
+    data["task"]["floor_object_names"].append("aside")
+    model = abstract(load(tmp_path, data))
+    assert ("InLine", "near", "far") in model.init and ("InLine", "near", "aside") not in model.init
+    learned = {("FinalClear", o) for o in ("near", "far", "aside")}
+    state = model.progress(model.init - learned, GroundStep("push", ("near",)))
+    assert ("FinalClear", "near") in state and ("FinalClear", "far") in state and ("FinalClear", "aside") not in state
