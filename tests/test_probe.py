@@ -281,8 +281,15 @@ def _same_pose(data):
     data["bodies"][4]["point"] = dict(data["bodies"][3]["point"])
 
 
+def _twins(data):  # b a copy of a, at a's pose (the folder's bury.json: objB and objG so)
+    b = next(b for b in data["bodies"] if b["name"] == "b")
+    a = next(b for b in data["bodies"] if b["name"] == "a")
+    b.update({k: json.loads(json.dumps(a[k])) for k in ("point", "quat", "links", "aabb") if k in a})
+
+
 SCENES = {  # the edit, what check and plan end with, words the sentence must hold
     "two objects at one pose": (_same_pose, 2, ["a", "b", "interpenetrate"]),
+    "two equal objects at one pose": (_twins, 2, ["a and b fill the same place", "two boxes of one size at one pose"]),
     "an object in the table": (_move("b", z=0.70), 2, ["b", "table_0", "interpenetrate"]),
     "an object below the ground": (_move("b", x=3.0, z=-0.5), 2, ["b", "0.500 m below the ground"]),
 }

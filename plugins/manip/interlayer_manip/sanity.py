@@ -9,6 +9,8 @@ import numpy as np
 
 PENETRATION = 0.005  # m: deeper than a file's rounding of a resting contact
 FLOATING = 0.01  # m: a gap under an object larger than this (the rest gap is 2 mm)
+SAME = 0.001  # m: two objects whose boxes agree this closely fill the same place
+PLURAL = {"box": "boxes", "cylinder": "cylinders"}
 
 
 def _extents(o) -> tuple:
@@ -81,6 +83,13 @@ def scene_issues(fixed, objects, floors=(), riders=()) -> list[tuple[str, str]]:
             stuck |= {i, j}
             first, second = (specs[j], specs[i]) if movable[j] and not movable[i] else (specs[i], specs[j])
             what = "the fixed body" if not movable[i] or not movable[j] else "the object"
+            if movable[i] and movable[j] and np.allclose(boxes[i], boxes[j], rtol=0.0, atol=SAME):
+                c = first.pose
+                issues.append(("error", f"The objects {first.name} and {second.name} fill the same place: two "
+                                        f"{PLURAL.get(first.shape, 'shapes')} of one size at one pose, centred at ({c[0]:.3f}, {c[1]:.3f}, "
+                                        f"{c[2]:.3f}); two solid objects cannot start in one place, so delete one of "
+                                        f"them or move it apart."))
+                continue
             issues.append(("error", f"The object {first.name} and {what} {second.name} interpenetrate by "
                                     f"{depth * 1000:.0f} mm at their initial poses; move one of them apart."))
     # supports: every other shape (and the floors) whose top is not above the object's bottom

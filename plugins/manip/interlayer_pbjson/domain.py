@@ -90,7 +90,7 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
         place_pre.append(f"(not ({done}))")
     if floor:  # obstacles standing on the floor (floor_object_names): what blocks the base is learned from drives
         preds.update({"BaseObstructs": ("obj", "bpose"), "FinalClear": ("obj",), "PushBlocked": ("obj", "obj"),
-                      "Pushable": ("obj",)})
+                      "Pushable": ("obj",), "InLine": ("obj", "obj")})
         pick_pre.append("(forall (?f - obj) (not (BaseObstructs ?f ?bp)))")
         place_pre.append("(forall (?f - obj) (not (BaseObstructs ?f ?bp)))")
         pick_eff += ["(forall (?p - bpose) (not (BaseObstructs ?o ?p)))", "(FinalClear ?o)",
@@ -139,13 +139,18 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
                                   pose_generator=f"pbjson:{final}"))
     if floor:
         # the base pushes ?f along a straight line (the pose generator picks it): whatever ?f blocked, it no
-        # longer does; what it blocks where it ends up is learned again from the failures it causes there
+        # longer does; what it blocks where it ends up is learned again from the failures it causes there. A
+        # push may carry along the floor obstacles ?f meets head on (InLine, from the start poses): their drive
+        # facts are forgotten too, and relearned where they still block a drive
+        moved = """(FinalClear ?x) (forall (?p - bpose) (not (BaseObstructs ?x ?p)))
+                   (forall (?y - obj) (and (not (PushBlocked ?x ?y)) (not (PushBlocked ?y ?x))))"""
         actions.append(ActionSpec(
             name="push", parameters=(("?f", "obj"),),
             precondition=f"(and (Pushable ?f) (Resting ?f) (forall (?b - obj) (not (PushBlocked ?b ?f))){f' (not ({done}))' if done else ''})",
-            effect="""(and (forall (?p - bpose) (not (BaseObstructs ?f ?p))) (FinalClear ?f)
+            effect=f"""(and (forall (?p - bpose) (not (BaseObstructs ?f ?p))) (FinalClear ?f)
                           (forall (?p - gpose) (not (Obstructs ?f ?p))) (forall (?p - pdpose) (not (PDObstructs ?f ?p)))
-                          (forall (?x - obj) (not (PushBlocked ?f ?x))))""",
+                          (forall (?x - obj) (not (PushBlocked ?f ?x)))
+                          (forall (?x - obj) (when (InLine ?f ?x) (and {moved}))))""",
             # no push of ?f: every side of it is against a wall or out of the base's reach (fixed obstacles
             # only: true while ?f stands there, forgotten at a reset)
             learn={"base_obstruction": ("(PushBlocked ?blocker ?f)",), "obstruction": ("(PushBlocked ?blocker ?f)",),

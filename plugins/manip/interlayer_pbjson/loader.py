@@ -217,6 +217,7 @@ def build_problem(scene, source, symbols) -> Problem:
     init = {("HandEmpty", a) for a in ARMS} | {("Other", "left", "right"), ("Other", "right", "left")}
     init |= {("Resting", o) for o in names}
     init |= {("Pushable", o) for o in handled}
+    init |= {("InLine", f, g) for f, g in in_line(geometry, handled)}
     init |= {("FinalClear", o) for o in names} if handled else set()  # nothing blocks the final drive until it fails
     world = geometry.initial_world()
     if geometry.in_collision(world):
@@ -261,6 +262,26 @@ def floor_handling(geometry) -> dict:
 
     kinds = geometry.layout.grasps
     return {o: "pick" if fits_gripper(geometry, o, kinds) else "push" for o in geometry.layout.extra["floor_objects"]}
+
+
+def in_line(geometry, floor) -> list:
+    """Pairs (f, g) of the ``floor`` obstacles where g stands in line with f, within the longest push, along
+    one of f's sides (a push of f meets it head on and carries it along: PBGeometry.push_pieces)."""
+    from interlayer_manip.scene import _radius
+    from interlayer_manip.state import pose4
+
+    from .samplers import PUSH_LENGTHS
+    from .world import ahead_in_line
+
+    poses = {o: pose4(*geometry.specs[o].pose) for o in floor}
+    out = []
+    for f, P in poses.items():
+        o = geometry.specs[f]
+        for g, Q in poses.items():
+            reach = max(PUSH_LENGTHS) + _radius(o) + _radius(geometry.specs[g])
+            if g != f and any((ahead_in_line(P, o, Q, o.pose[3] + k * math.pi / 2) or reach + 1) <= reach for k in range(4)):
+                out.append((f, g))
+    return out
 
 
 def _any(atoms):

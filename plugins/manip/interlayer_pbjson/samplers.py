@@ -235,7 +235,8 @@ PUSH_LENGTHS = (0.3, 0.6, 0.9, 1.2)  # m: how far a push moves its object
 
 def push(problem, step, world, rng):
     """Pushes of floor obstacle ``f``: the base faces one of f's sides (in f's own frame), drives up to it
-    and on straight for one of PUSH_LENGTHS, f moving ahead of it. Offered only where the base can stand
+    and on straight for one of PUSH_LENGTHS, f moving ahead of it (and the floor obstacles it meets head
+    on with it: PBGeometry.push_pieces). Offered only where the base can stand
     and reach (the loader's reachable area), with the robot at the start and both at the end clear of fixed
     obstacles and neither running into one on the way (checked coarsely: the refinement checks the line
     at the validator's resolution). Ranked by the loader's flood fill of the base (a disk) among the fixed
@@ -254,10 +255,8 @@ def push(problem, step, world, rng):
     yaw = math.atan2(P[1, 0], P[0, 0])
     area = geometry.layout.extra.get("base_area")
     # where the base can drive now, the floor obstacles where they stand: pushes from there first
-    others = [*geometry.layout.fixed, *(_spec_at(geometry.specs[o], Q) for o, Q in w.objects.items()
-                                          if o in geometry.floor_objects and o != obj)]
     limits = geometry.layout.extra["base_limits"]
-    now = reachable_area([*others, _spec_at(geometry.specs[obj], P)], w.base, *limits)
+    now = reachable_area(_floor_shapes(geometry, w), w.base, *limits)
     goals = list(dict.fromkeys(to for _, to in geometry.blocked_drives))
     found = []
     for k in range(4):
@@ -281,13 +280,21 @@ def push(problem, step, world, rng):
             with geometry.stats.timer("collision_checking"):
                 if geometry.cw.objects_overlap(obj, E) & geometry.fixed:
                     continue
-            if geometry.in_collision(replace(w, base=end), movables=False) or \
-                    geometry.push_line(w, obj, start, end, fine=RES_BASE * 2, movables=False)[1]:
-                continue  # the robot or the object would run into a wall
-            after = reachable_area([*others, _spec_at(geometry.specs[obj], E)], end, *limits)
+            if geometry.in_collision(replace(w, base=end), movables=False):
+                continue
+            moved, why, pieces = geometry.push_pieces(w, obj, start, end, fine=RES_BASE * 2, movables=False)
+            if why:
+                continue  # the robot or an object would run into a wall
+            after = reachable_area(_floor_shapes(geometry, moved), end, *limits)
             blocked = sum(after is not None and not after(*g) for g in goals)  # goals of blocked drives still cut off
-            found.append((now is not None and not now(*start[:2]), blocked, -length, rng.random(), start, end))
+            found.append((now is not None and not now(*start[:2]), blocked, -length, rng.random(), start, end, pieces[-1][2][1:]))
     found.sort(key=lambda c: c[:4])
-    for _, _, length, _, start, end in found:
-        yield Candidate((start, end), {}, f"push {obj} {-length:.1f} m from base {fmt(start)}")
+    for _, _, length, _, start, end, chain in found:
+        yield Candidate((start, end), {}, f"push {obj} {-length:.1f} m from base {fmt(start)}"
+                                          + (f" (with {', '.join(chain)}, which it meets head on)" if chain else ""))
 
+
+def _floor_shapes(geometry, world) -> list:
+    """The fixed shapes and the floor obstacles where ``world`` has them: what the base's flood fill avoids."""
+    return [*geometry.layout.fixed, *(_spec_at(geometry.specs[o], Q) for o, Q in world.objects.items()
+                                      if o in geometry.floor_objects)]

@@ -29,6 +29,7 @@ HOME_TOL = 1e-3  # m / rad: the robot is back at its start configuration
 GOAL_POS_TOL, GOAL_YAW_TOL = 0.01, math.radians(5)  # an object is at its goal pose
 PUSH_GAP = 0.01  # m: a pushed object is held this far ahead of the first contact with the base (touching collides)
 PUSH_CONTACT = 0.02  # m: the validator's test that the base pushes it: moved this much closer, it touches the robot
+MAX_CHAIN = 4  # objects one push may move (the pushed one and what it meets head on, in a row)
 
 
 class PBGeometry(ManipulationGeometry):
@@ -289,52 +290,121 @@ class PBGeometry(ManipulationGeometry):
             lo, hi = (mid, hi) if touches(mid) else (lo, mid)
         return hi
 
-    def push_line(self, world, obj, start, end, fine: float = RES_BASE / 5, movables: bool = True):
-        """The base driving straight from ``start`` to ``end`` with ``obj`` (as ``world`` has it) moved rigidly
-        in front of it: (world after, None) or (world, the Failure) naming what the robot or the object hits
-        (a movable blocker as an obstruction; with ``movables`` False, only fixed obstacles are checked).
-        Checked every ``fine`` m (the validator's resolution by default)."""
-        B = np.linalg.inv(base4(start)) @ world.objects[obj]
+    def push_line(self, world, obj, start, end, fine: float = RES_BASE / 5, movables: bool = True, chain=()):
+        """The base driving straight from ``start`` to ``end`` with ``obj`` and the objects of ``chain`` (as
+        ``world`` has them) moved rigidly in front of it: (world after, None) or (world, the Failure) naming
+        what the robot or an object hits (a movable blocker as an obstruction; with ``movables`` False, only
+        fixed obstacles are checked). Checked every ``fine`` m (the validator's resolution by default)."""
+        after, why, _, _ = self._sweep(world, (obj, *chain), start, end, fine, movables)
+        return after, why
+
+    def _sweep(self, world, objs, start, end, fine, movables):
+        """push_line's work: (world after, Failure or None, the last base pose checked clear, the floor
+        obstacles only the pushed objects run into there (none: something else failed it))."""
+        Bs = {o: np.linalg.inv(base4(start)) @ world.objects[o] for o in objs}
         base = self.robot.group("base")
+        moved = set(objs) | {o for o, _ in world.held.values()}
+        last = np.asarray(start, float)
         with self.stats.timer("collision_checking"):
             q0 = self.sync(replace(world, base=tuple(start)))
             try:
                 for v in self.base_space.densify([np.asarray(start, float), np.asarray(end, float)], fine):
-                    P = base4(v) @ B
-                    self.cw.set_pose(obj, P)
+                    poses = {o: base4(v) @ B for o, B in Bs.items()}
+                    for o, P in poses.items():
+                        self.cw.set_pose(o, P)
                     q = base.set(q0, v)
                     if not self.base_space.within_bounds(v):
-                        return world, Failure("unreachable", (), f"push: the base leaves its bounds at {np.round(v, 3).tolist()}")
-                    hits = (self.cw.objects_overlap(obj, P) | self.cw.colliding_movables(q)) - {obj} \
-                        - {o for o, _ in world.held.values()}
+                        return world, Failure("unreachable", (), f"push: the base leaves its bounds at {np.round(v, 3).tolist()}"), last, ()
+                    ahead = set().union(*(self.cw.objects_overlap(o, P) for o, P in poses.items())) - moved
+                    hits = ahead | (self.cw.colliding_movables(q) - moved)
                     if hits & self.fixed or self.cw.in_collision(q, ignore=tuple(world.objects), movables=False):
-                        return world, Failure("unreachable", (), f"push: {obj} or the robot runs into a fixed obstacle "
-                                                                 f"at base {np.round(v, 3).tolist()}")
+                        return world, Failure("unreachable", (), f"push: {', '.join(objs)} or the robot runs into a "
+                                                                 f"fixed obstacle at base {np.round(v, 3).tolist()}"), last, ()
                     if hits and movables:
-                        return world, Failure("obstruction", tuple(sorted(hits)), f"push: {obj} or the robot runs into "
-                                                                                  f"{', '.join(sorted(hits))}")
+                        floor = tuple(sorted(hits)) if hits <= ahead and hits <= self.floor_objects else ()
+                        return world, Failure("obstruction", tuple(sorted(hits)), f"push: {', '.join(objs)} or the robot "
+                                                                                  f"runs into {', '.join(sorted(hits))}"), last, floor
                     if movables and self.cw.in_collision(q):
-                        return world, Failure("unreachable", (), f"push: collision at base {np.round(v, 3).tolist()}")
+                        return world, Failure("unreachable", (), f"push: collision at base {np.round(v, 3).tolist()}"), last, ()
+                    last = v
             finally:
-                self.cw.set_pose(obj, world.objects[obj])
+                for o in objs:
+                    self.cw.set_pose(o, world.objects[o])
                 self._synced = None
-        return replace(world, base=tuple(float(v) for v in end), objects={**world.objects, obj: base4(end) @ B}), None
+        objects = {**world.objects, **{o: base4(end) @ B for o, B in Bs.items()}}
+        return replace(world, base=tuple(float(v) for v in end), objects=objects), None, last, ()
+
+    def push_pieces(self, world, obj, start, end, fine: float = RES_BASE / 5, movables: bool = True):
+        """A push of ``obj`` from base ``start`` to ``end`` in which what the pushed objects run into head-on
+        (a resting floor obstacle whose centre lies within the width of the one that meets it, across the
+        push) joins them and moves with them from the moment they touch, up to MAX_CHAIN objects in all:
+        (world after, Failure or None, [(from, to, the objects pushed, the world at from)] one piece per chain).
+        ``movables`` False: other movable objects are not checked (the push sampler's coarse test)."""
+        chain, s, pieces, w = (obj,), tuple(start), [], world
+        while True:
+            after, why, last, floor = self._sweep(w, chain, s, end, fine, True)
+            joins = bool(floor) and len(chain) + len(floor) <= MAX_CHAIN and all(self._head_on(w, chain, s, f) for f in floor)
+            if why is not None and not joins and not movables and why.kind == "obstruction":
+                # movables the coarse test does not ask about (the refinement learns them): on as if clear
+                after, why = self.push_line(w, obj, s, end, fine, movables=False, chain=chain[1:])
+            if why is None:
+                return after, None, [*pieces, (s, tuple(float(v) for v in end), chain, w)]
+            if not joins:
+                return world, why, pieces
+            touch = self._touching(w, chain, s, last, floor, fine)
+            if math.dist(touch[:2], s[:2]) > 1e-9:  # (a chain that touches at the start moves as one at once)
+                pieces.append((s, touch, chain, w))
+                w, _ = self.push_line(w, obj, s, touch, fine, movables=False, chain=chain[1:])
+            chain, s = (*chain, *floor), touch
+
+    def _head_on(self, world, chain, base, f) -> bool:
+        """Floor obstacle ``f`` stands ahead of one of ``chain`` along the push (the base at ``base``),
+        its centre within that object's width across the push: the push meets it face on."""
+        return any(ahead_in_line(world.objects[o], self.specs[o], world.objects[f], float(base[2])) is not None
+                   for o in chain)
+
+    def _touching(self, world, chain, start, last, floor, step, tol: float = 0.001) -> tuple:
+        """The base pose between ``last`` (the chain clear of ``floor``) and the next step along the push
+        (``step`` further) where the chain stands less than ``tol`` from touching them: bisection."""
+        start = np.asarray(start, float)
+        u = np.array([math.cos(start[2]), math.sin(start[2])])
+        Bs = {o: np.linalg.inv(base4(start)) @ world.objects[o] for o in chain}
+        lo = float((np.asarray(last[:2]) - start[:2]) @ u)
+        hi = lo + step
+
+        def at(d):
+            return (float(start[0] + d * u[0]), float(start[1] + d * u[1]), float(start[2]))
+
+        def hit(d):
+            with self.stats.timer("collision_checking"):
+                return any(self.cw.objects_overlap(o, base4(at(d)) @ B) & set(floor) for o, B in Bs.items())
+        self.sync(world)
+        while hi - lo > tol:
+            mid = (lo + hi) / 2
+            lo, hi = (lo, mid) if hit(mid) else (mid, hi)
+        return at(lo)
 
     def _push(self, step, world, cand, motion, acc):
         """push(f): drive to the candidate's first base pose (facing f, just short of touching it), then
-        straight to its second one, f moving rigidly ahead of the base."""
+        straight to its second one, f moving rigidly ahead of the base (and what it meets head on with it,
+        one segment per chain)."""
         obj = step.args[0]
         start, end = (tuple(float(v) for v in p) for p in cand.waypoints)
         segs = []
         w, failed = self.drive(world, start, "push drive", segs, motion, acc, exclude=obj)
         if failed:
             return failed
-        after, why = self.push_line(w, obj, start, end)
+        after, why, pieces = self.push_pieces(w, obj, start, end)
         if why:
             return StepOutcome(False, failure=why)
-        seg = self._segment("push", "base", [start, end], _holding(w))
-        seg.update(object=obj, base_T_object=(np.linalg.inv(base4(start)) @ w.objects[obj]).tolist())
-        return StepOutcome(True, replace(after, tloc={}), segs + [seg])
+        for s, e, chain, w in pieces:
+            seg = self._segment("push", "base", [s, e], _holding(w))
+            seg.update(object=obj, base_T_object=(np.linalg.inv(base4(s)) @ w.objects[obj]).tolist())
+            if len(chain) > 1:
+                seg["chain"] = [{"object": o, "base_T_object": (np.linalg.inv(base4(s)) @ w.objects[o]).tolist()}
+                                for o in chain[1:]]
+            segs.append(seg)
+        return StepOutcome(True, replace(after, tloc={}), segs)
 
     def tucked(self, world):
         """``world`` with every empty arm tucked (where :meth:`_tuck` moves them)."""
@@ -401,13 +471,28 @@ class PBGeometry(ManipulationGeometry):
         return draw.animation_frames(self, scene, as_carried(trajectory))
 
 
+def ahead_in_line(P, spec, Q, heading) -> float | None:
+    """How far ahead of object ``spec`` at pose P the centre of pose Q stands along ``heading``, when it
+    stands ahead and within the object's width across that direction (a push along ``heading`` meets it
+    face on); else None."""
+    u = np.array([math.cos(heading), math.sin(heading)])
+    across = np.array([-u[1], u[0]])
+    if spec.shape == "cylinder":
+        half = spec.size[0]
+    else:
+        half = (abs(float(P[:2, 0] @ across)) * spec.size[0] + abs(float(P[:2, 1] @ across)) * spec.size[1]) / 2
+    d = Q[:2, 3] - P[:2, 3]
+    ahead = float(d @ u)
+    return ahead if ahead > 0 and abs(float(d @ across)) <= half else None
+
+
 def base4(b) -> np.ndarray:
     """The 4x4 pose of the base frame at (x, y, yaw), on the floor."""
     return pose4(float(b[0]), float(b[1]), 0.0, float(b[2]))
 
 
 def as_carried(trajectory) -> dict:
-    """``trajectory`` with each push drawn as the viewer draws a carried tray: the object taken along with
+    """``trajectory`` with each push drawn as the viewer draws a carried tray: the objects taken along with
     the base ("carry"), the base's drive, the object left where it ends ("set_down")."""
     steps = []
     for step in trajectory.get("steps") or []:
@@ -416,17 +501,19 @@ def as_carried(trajectory) -> dict:
             if seg.get("kind") != "push":
                 segs.append(seg)
                 continue
-            B = np.asarray(seg["base_T_object"], float)
-            segs += [{"kind": "carry", "objects": [seg["object"]]}, {**seg, "kind": "base"},
-                     {"kind": "set_down", "objects": {seg["object"]: (base4(seg["points"][-1]["positions"]) @ B).tolist()}}]
+            moved = [(seg["object"], seg["base_T_object"]), *((c["object"], c["base_T_object"]) for c in seg.get("chain") or [])]
+            end = base4(seg["points"][-1]["positions"])
+            segs += [{"kind": "carry", "objects": [o for o, _ in moved]}, {**seg, "kind": "base"},
+                     {"kind": "set_down", "objects": {o: (end @ np.asarray(B, float)).tolist() for o, B in moved}}]
         steps.append({**step, "segments": segs})
     return {**trajectory, "steps": steps}
 
 
 def check_push(geometry, world, seg, at):
     """The validator's check of a push segment: a straight forward drive of the base (its heading fixed),
-    the object touching the base's front at the start and moving rigidly with it, nothing colliding at the
-    validator's resolution, velocities and accelerations within the base's limits."""
+    the object touching the base's front at the start and moving rigidly with it, each object of the
+    segment's ``chain`` touching one before it and moving so too, nothing colliding at the validator's
+    resolution, velocities and accelerations within the base's limits."""
     from interlayer_manip.validate import _check_timing, _pose_close
 
     obj = seg.get("object")
@@ -443,6 +530,12 @@ def check_push(geometry, world, seg, at):
     B = np.asarray(seg.get("base_T_object"), float)
     if not _pose_close(base4(path[0]) @ B, world.objects[obj]):
         return world, f"{at}: {obj} is not where the push starts it (teleported)"
+    chain = [(c.get("object"), np.asarray(c.get("base_T_object"), float)) for c in seg.get("chain") or []]
+    for o, C in chain:
+        if o not in world.objects or o == obj or o in {h for h, _ in world.held.values()} or C.shape != (4, 4):
+            return world, f"{at}: the chain names {o!r}, not another resting object"
+        if not _pose_close(base4(path[0]) @ C, world.objects[o]):
+            return world, f"{at}: {o} is not where the push starts it (teleported)"
     d = path[-1][:2] - path[0][:2]
     h = path[0][2]
     if any(abs(wrap(p[2] - h)) > 1e-6 for p in path) or abs(-math.sin(h) * d[0] + math.cos(h) * d[1]) > 1e-6 or \
@@ -456,7 +549,14 @@ def check_push(geometry, world, seg, at):
     geometry._synced = None
     if not touching:
         return world, f"{at}: {obj} is more than {PUSH_CONTACT * 100:.0f} cm ahead of the robot: the base does not push it"
-    after, why = geometry.push_line(world, obj, path[0], path[-1])
+    before = [obj]
+    for o, C in chain:  # each touches one before it: moved towards the base, it overlaps one
+        with geometry.stats.timer("collision_checking"):
+            touching = geometry.cw.objects_overlap(o, base4(path[0]) @ trans(-PUSH_CONTACT, 0.0, 0.0) @ C) & set(before)
+        if not touching:
+            return world, f"{at}: {o} is more than {PUSH_CONTACT * 100:.0f} cm ahead of {', '.join(before)}: nothing pushes it"
+        before.append(o)
+    after, why = geometry.push_line(world, obj, path[0], path[-1], chain=tuple(o for o, _ in chain))
     if why:
         return world, f"{at}: {why.detail}"
     why = _check_timing(geometry, geometry.base_space, "base", ["x", "y", "theta"], points, path, at)
