@@ -411,6 +411,27 @@ def test_an_object_on_a_stand_no_list_names_is_picked_by_a_robot_turned_half_rou
     assert api.validate(tmp_path / "out") == []
 
 
+def test_a_region_another_object_fills_is_cleared_then_used(tmp_path):
+    """transporter: the goal region is just big enough for one object, and another stands in it. Before,
+    the put-down generator offered only spots clear of other objects: none, and the run gave up. Spots on
+    other objects now come after the clear ones; the put-down there names b (PDObstructs), which the task
+    planner moves first. Mutation: spots closer than 1 cm to another object skipped again (gave_up)."""
+    data = scene(goal_regions={"a": "spot"})
+    x, y = 1.2, -0.2  # where b stands: the region is a 10 cm square around it
+    data["task"]["regions"] = [{**data["task"]["regions"][0], "name": "spot",
+                                "hull": [[x - 0.05, y - 0.05], [x - 0.05, y + 0.05], [x + 0.05, y + 0.05], [x + 0.05, y - 0.05]]}]
+    path = tmp_path / "filled.json"
+    path.write_text(json.dumps(data))
+    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=120"])
+    assert result.status == "solved", result.reason
+    out = tmp_path / "out"
+    api.write_outputs(result, out)
+    learned = json.loads((out / "result.json").read_text())["learned_facts"]
+    assert any(f.startswith("(PDObstructs b ") for f in learned), learned
+    assert [(s.action, s.args[0]) for s in result.plan][-1] == ("place", "a")
+    assert api.validate(out) == []
+
+
 @needs_shared
 def test_every_shared_file_loads_with_its_goals():
     from interlayer.plugins import PluginHost

@@ -5,8 +5,9 @@
 * ``pbjson:place``: for ``place`` on the one table of a single-table scene, Clutter's put-down sampler;
   otherwise a stable placement on the step's surface: a point inside its polygon
   (the object's whole footprint inside, for tables and regions; its centre over the top of an object
-  it is stacked on), clear of fixed obstacles, other objects and the goal poses of others, and out of
-  the best approaches found so far (Clutter's corridors); for
+  it is stacked on), clear of fixed obstacles and the goal poses of others, and out of the best
+  approaches found so far (Clutter's corridors); spots clear of other objects first, then spots on them
+  (a region another object fills: the put-down names it, and the task planner moves it first); for
   ``place_at_goal`` the goal pose itself (and its symmetric yaws). Then a base pose, IK, the lowering
   and the retreat; candidates with fewer objects in the way first.
 * ``pbjson:go_home``: the start configuration; ``pbjson:go_to``: the file's base pose goal.
@@ -67,19 +68,23 @@ class PBSampler(ClutterSampler):
         others = [(Q[0, 3], Q[1, 3], _radius(geometry.specs[k])) for k, Q in world.objects.items() if k not in (obj, below)]
         corridors = self.corridors_for(world, obj, geometry.layout.target)  # the best approaches found so far
         r = _radius(o)
-        spots = []
+        spots, taken = [], []
         for x, y in draw_in(poly, rng, 25 * tries):
             if not inside(poly, x, y, 0.005 if stacked else min(o.size[0], o.size[1]) / 2):
                 continue
             if any(math.hypot(x - a, y - b) < r + s + 0.02 for a, b, s in reserved):
                 continue  # another object's goal pose
             d = min((math.hypot(x - a, y - b) - r - s for a, b, s in others), default=1.0)
-            if d < 0.01:
+            if d < 0.01:  # on or against another object: offered after the clear spots, so that a surface that
+                # objects fill still has put-downs, whose refinement names them (PDObstructs: moved first)
+                if len(taken) < tries:
+                    taken.append((d, float(x), float(y)))
                 continue
             spots.append((min(d, 0.25) - in_corridors(x, y, corridors) + 0.1 * rng.random(), float(x), float(y)))
             if len(spots) >= tries:
                 break
         spots.sort(key=lambda s: -s[0])
+        spots += sorted(taken, key=lambda s: -s[0])
 
         def pose_at(x, y, heading):
             P, _ = _putdown(G, x, y, z, heading)
