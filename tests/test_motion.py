@@ -58,6 +58,18 @@ def test_planners_go_around_or_report(host, name):
     assert np.allclose(plan.path[0], [-0.5, 0, 0]) and np.allclose(plan.path[-1], [0.5, 0, 0])
 
 
+@pytest.mark.parametrize("yaws", [(math.pi, math.pi), (math.pi, 0.0), (-math.pi, math.pi)])
+def test_ompl_takes_a_yaw_of_pi(host, yaws):
+    """A base turned half round (yaw pi, as a file's quaternion gives it) is inside the space's closed
+    bounds; OMPL's SO2 bounds are [-pi, pi): the adapter passes it on wrapped, and the path ends where
+    the query says, to the number."""
+    start, goal = (-0.5, 0, yaws[0]), (0.5, 0, yaws[1])
+    plan = host["motion_planners"].get("ompl:RRTConnect").factory({"time_limit": 0.5}).plan(
+        wall_query(movable_wall=False, start=start, goal=goal))
+    assert plan.ok, plan.reason
+    assert tuple(plan.path[0]) == start and tuple(plan.path[-1]) == goal
+
+
 @pytest.mark.parametrize("name", ["interpolate", "ompl:RRTConnect"])
 def test_blocked_by_a_movable_object_names_it(host, name):
     """A movable wall across the whole space: only the relaxed path exists, and it runs into 'wall'."""

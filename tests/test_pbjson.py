@@ -388,6 +388,50 @@ def test_a_given_and_an_initial_pose_goal_solve_and_validate(tmp_path):
     assert api.validate(tmp_path / "out") == []
 
 
+def test_an_object_on_a_stand_no_list_names_is_picked_by_a_robot_turned_half_round(tmp_path):
+    """exists_hold_obs_*: the robot starts turned half round (the file's quaternion gives a yaw of exactly
+    pi), a wall between it and the object to hold, which stands on a box no list names as a table. Before: OMPL refused every
+    drive from or to yaw pi (its SO2 bounds are [-pi, pi)), then the raise started inside the box's
+    padding (only surfaces were padded sideways only). Mutations: the OMPL adapter's yaw wrap removed
+    (every drive fails: gave_up); ``resting_on`` left out of the loader's supports (the raise collides)."""
+    data = scene(goal_holding="c", goal_config="initial")
+    data["bodies"] = [_body("stand", (1.2, 0.0, 0.0), [_box((0.3, 0.3, 0.37), (0, 0, 0.37))]),
+                      _body("c", (1.1, 0.0, 0.741), [_box((0.03, 0.025, 0.08), (0, 0, 0.08), color=(0, 1, 0))]),
+                      _body("wall", (0.8, 0.0, 0.0), [_box((0.02, 0.5, 0.6), (0, 0, 0.6))])]  # no straight drive
+    data["task"].update(object_names=["c"], table_names=[], sink_names=[], stove_names=[], regions=[])
+    data["robots"][0]["quat"] = {"w": 6.123233995736766e-17, "x": 0.0, "y": 0.0, "z": 1.0}
+    p = load(tmp_path, data)
+    assert p.geometry.layout.base[2] == math.pi and "stand" in p.geometry.layout.extra["supports"]
+    path = tmp_path / "stand.json"
+    path.write_text(json.dumps(data))
+    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=120"])
+    assert result.status == "solved", result.reason
+    assert [s.action for s in result.plan] == ["pick", "go_home"]
+    api.write_outputs(result, tmp_path / "out")
+    assert api.validate(tmp_path / "out") == []
+
+
+def test_a_region_another_object_fills_is_cleared_then_used(tmp_path):
+    """transporter: the goal region is just big enough for one object, and another stands in it. Before,
+    the put-down generator offered only spots clear of other objects: none, and the run gave up. Spots on
+    other objects now come after the clear ones; the put-down there names b (PDObstructs), which the task
+    planner moves first. Mutation: spots closer than 1 cm to another object skipped again (gave_up)."""
+    data = scene(goal_regions={"a": "spot"})
+    x, y = 1.2, -0.2  # where b stands: the region is a 10 cm square around it
+    data["task"]["regions"] = [{**data["task"]["regions"][0], "name": "spot",
+                                "hull": [[x - 0.05, y - 0.05], [x - 0.05, y + 0.05], [x + 0.05, y + 0.05], [x + 0.05, y - 0.05]]}]
+    path = tmp_path / "filled.json"
+    path.write_text(json.dumps(data))
+    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=120"])
+    assert result.status == "solved", result.reason
+    out = tmp_path / "out"
+    api.write_outputs(result, out)
+    learned = json.loads((out / "result.json").read_text())["learned_facts"]
+    assert any(f.startswith("(PDObstructs b ") for f in learned), learned
+    assert [(s.action, s.args[0]) for s in result.plan][-1] == ("place", "a")
+    assert api.validate(out) == []
+
+
 @needs_shared
 def test_every_shared_file_loads_with_its_goals():
     from interlayer.plugins import PluginHost

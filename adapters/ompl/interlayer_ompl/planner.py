@@ -114,7 +114,9 @@ class OMPLPlanner(MotionPlanner):
             def to_state(q):
                 st = ompl_space.allocState()
                 st.setXY(float(q[0]), float(q[1]))
-                st.setYaw(float(q[2]))
+                # OMPL's SO2 bounds are [-pi, pi): a yaw of exactly pi (a base turned half round, as files
+                # give it) is "out of bounds", and every query from or to it fails
+                st.setYaw((float(q[2]) + math.pi) % (2 * math.pi) - math.pi)
                 return st
         else:
             def values(s):  # index, never iterate: iterating an OMPL state segfaults
@@ -193,7 +195,10 @@ class OMPLPlanner(MotionPlanner):
             setup.getPathSimplifier().ropeShortcutPath(path)
             if stop:
                 raise stop[0]
-        return [to_vec(path.getState(i)) for i in range(path.getStateCount())]
+        out = [to_vec(path.getState(i)) for i in range(path.getStateCount())]
+        # the ends as the query gave them (a yaw of pi, not OMPL's -pi: the same pose, the caller's numbers)
+        out[0], out[-1] = np.array(start, float), np.array(goal, float)
+        return out
 
 
 @functools.cache

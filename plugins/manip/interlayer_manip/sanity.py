@@ -67,6 +67,33 @@ def penetrations(specs, movable, boxes=None) -> list:
     return out
 
 
+def _tops(support) -> tuple:
+    """(xy minima, xy maxima, top z) of the boxes around the ``support`` specs."""
+    centre = np.array([o.pose[:3] for o in support], float)
+    half = np.array([_extents(o) for o in support], float)
+    return centre[:, :2] - half[:, :2], centre[:, :2] + half[:, :2], centre[:, 2] + half[:, 2]
+
+
+def _under(tops, box, skip=None):
+    """The index of the highest support (of :func:`_tops`) under the box (a row of :func:`_boxes`): its
+    footprint overlaps the box's and its top is not above the box's bottom. None if there is none."""
+    lo, hi, top = tops
+    under = np.all(lo < box[[1, 3]], axis=1) & np.all(hi > box[[0, 2]], axis=1) & (top <= box[4] + PENETRATION)
+    if skip is not None:
+        under[skip] = False
+    return int(np.argmax(np.where(under, top, -np.inf))) if under.any() else None
+
+
+def resting_on(fixed, objects) -> set:
+    """The names of the ``fixed`` specs some of ``objects`` stand on (the highest shape under an object, its
+    top at most FLOATING below the object's bottom): supports, whether or not a file names them as surfaces."""
+    if not fixed or not objects:
+        return set()
+    tops, boxes = _tops(fixed), _boxes(objects)
+    found = (_under(tops, box) for box in boxes)
+    return {fixed[i].name for i, box in zip(found, boxes) if i is not None and box[4] - tops[2][i] <= FLOATING}
+
+
 def scene_issues(fixed, objects, floors=(), riders=()) -> list[tuple[str, str]]:
     """[("error" | "warning", sentence)]: interpenetrating pairs (a movable with a movable or a fixed
     shape) and objects under the ground are errors; floating objects warnings. ``floors`` support
@@ -94,20 +121,15 @@ def scene_issues(fixed, objects, floors=(), riders=()) -> list[tuple[str, str]]:
                                     f"{depth * 1000:.0f} mm at their initial poses; move one of them apart."))
     # supports: every other shape (and the floors) whose top is not above the object's bottom
     support = [*specs, *floors]
-    s_centre = np.array([o.pose[:3] for o in support], float)
-    s_half = np.array([_extents(o) for o in support], float)
-    s_lo, s_hi, s_top = s_centre[:, :2] - s_half[:, :2], s_centre[:, :2] + s_half[:, :2], s_centre[:, 2] + s_half[:, 2]
+    tops = _tops(support)
     riding = set(riders)
     for k, o in enumerate(objects, start=len(fixed)):
         if o.name in riding or k in stuck:
             continue
         bottom = boxes[k, 4]
-        under = (np.all(s_lo < boxes[k, [1, 3]], axis=1) & np.all(s_hi > boxes[k, [0, 2]], axis=1)
-                 & (s_top <= bottom + PENETRATION))
-        under[k] = False
-        if under.any():
-            best = int(np.argmax(np.where(under, s_top, -np.inf)))
-            top, below = s_top[best], support[best].name
+        best = _under(tops, boxes[k], skip=k)
+        if best is not None:
+            top, below = tops[2][best], support[best].name
         elif bottom >= -PENETRATION:
             top, below = 0.0, "the ground (z = 0)"
         else:

@@ -15,6 +15,7 @@ import numpy as np
 from interlayer.domain import Problem
 from interlayer.errors import UserError
 from interlayer.names import Names
+from interlayer_manip.sanity import resting_on
 from interlayer_manip.scene import Layout
 
 from .domain import SLOTS, pbjson_domain
@@ -184,9 +185,13 @@ def build_problem(scene, source, symbols) -> Problem:
     if scene.torso is not None and torso > scene.torso + 1e-9:
         log.info("torso raised from %.3f (robots[0].conf) to %.3f m to reach surfaces at %.2f m", scene.torso, torso,
                  max((s.z for s in spots.values()), default=main_top))
+    standing = resting_on([o for o in scene.fixed if o.name not in scene.floors], scene.objects)
     extra = {"table_top": float(main_top), "base_limits": (lo, hi), "base_cells": None if reach is None else reach.cells,
              "torso_height": torso, "torso_conf": scene.torso,
-             "supports": tuple(o.name for o in scene.fixed if any(_body(scene, o.name, s) for s in spots.values())),
+             # the surfaces' shapes, and any shape an object stands on (a table the file does not name): the
+             # planner pads them sideways only, or an object picked off one would start in its padding
+             "supports": tuple(o.name for o in scene.fixed if any(_body(scene, o.name, s) for s in spots.values())
+                               or o.name in standing),
              "surfaces": spots, "colors": scene.colors, "offsets": scene.offsets, "arms": scene.arms, "goals": goals,
              "clutter_table": clutter_table, "table_frame": table_frame, "base_area": reach, "camera": scene.camera,
              "notes": scene.notes, "floors": [o for o in scene.fixed if o.name in scene.floors],  # drawn, not collided with

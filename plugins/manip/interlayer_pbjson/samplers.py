@@ -5,8 +5,9 @@
 * ``pbjson:place``: for ``place`` on the one table of a single-table scene, Clutter's put-down sampler;
   otherwise a stable placement on the step's surface: a point inside its polygon
   (the object's whole footprint inside, for tables and regions; its centre over the top of an object
-  it is stacked on), clear of fixed obstacles, other objects and the goal poses of others, and out of
-  the best approaches found so far (Clutter's corridors); for
+  it is stacked on), clear of fixed obstacles and the goal poses of others, and out of the best
+  approaches found so far (Clutter's corridors); spots clear of other objects first, then spots on them
+  (a region another object fills: the put-down names it, and the task planner moves it first); for
   ``place_at_goal`` the goal pose itself (and its symmetric yaws). Then a base pose, IK, the lowering
   and the retreat; candidates with fewer objects in the way first.
 * ``pbjson:go_home``: the start configuration; ``pbjson:go_to``: the file's base pose goal.
@@ -71,32 +72,36 @@ class PBSampler(ClutterSampler):
         others = [polygon_of(_spec_at(geometry.specs[k], Q)) for k, Q in world.objects.items() if k not in (obj, below)]
         corridors = self.corridors_for(world, obj, geometry.layout.target)  # the best approaches found so far
         r = o.size[0] if o.shape == "cylinder" else min(o.size[0], o.size[1]) / 2  # within the footprint at any yaw
-        spots = []
+        spots, taken = [], []
         for x, y in draw_in(poly, rng, 25 * tries):
             if not inside(poly, x, y, 0.005 if stacked else min(o.size[0], o.size[1]) / 2):
                 continue
             if any(distance_to(g, x, y) < r + GOAL_GAP for g in reserved):
                 continue  # another object's goal pose, whatever the yaw
             d = min((distance_to(q, x, y) - r for q in others), default=1.0)
-            if d < OBJECT_GAP:
+            if d < OBJECT_GAP:  # on or against another object: offered after the clear spots, so that a surface that
+                # objects fill still has put-downs, whose refinement names them (PDObstructs: moved first)
+                if len(taken) < tries:
+                    taken.append((d, float(x), float(y)))
                 continue
             spots.append((min(d, 0.25) - in_corridors(x, y, corridors) + 0.1 * rng.random(), float(x), float(y)))
             if len(spots) >= tries:
                 break
-        spots.sort(key=lambda s: -s[0])
+        spots = [(x, y, True) for _, x, y in sorted(spots, key=lambda s: -s[0])]
+        spots += [(x, y, False) for _, x, y in sorted(taken, key=lambda s: -s[0])]
 
-        def pose_at(x, y, heading):
+        def pose_at(x, y, heading, clear):
             P, _ = _putdown(G, x, y, z, heading)
             footprint = polygon_of(_spec_at(o, P))
             if not stacked and not all(inside(poly, px, py) for px, py in footprint):
                 return None
             if not all(apart(footprint, g, GOAL_GAP) for g in reserved) or \
-                    not all(apart(footprint, q, OBJECT_GAP) for q in others):
+                    (clear and not all(apart(footprint, q, OBJECT_GAP) for q in others)):
                 return None  # at this yaw, on another's goal pose or against an object
             return P
 
         yield from self._putdowns(problem, world, obj, arm, step.args[4], step.args[5],
-                                  [(x, y, lambda h, x=x, y=y: pose_at(x, y, h), None) for _, x, y in spots], rng)
+                                  [(x, y, lambda h, x=x, y=y, c=c: pose_at(x, y, h, c), None) for x, y, c in spots], rng)
 
     def place_at_goal(self, problem, step, world, rng):
         from interlayer_manip.generators import _yaw
