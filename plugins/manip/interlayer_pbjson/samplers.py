@@ -88,7 +88,7 @@ class PBSampler(ClutterSampler):
             return P
 
         yield from self._putdowns(problem, world, obj, arm, step.args[4], step.args[5],
-                                  [(x, y, lambda h, x=x, y=y: pose_at(x, y, h), None) for _, x, y in spots], rng)
+                                  [(x, y, lambda h, x=x, y=y: pose_at(x, y, h), None) for _, x, y in spots], z, rng)
 
     def place_at_goal(self, problem, step, world, rng):
         from interlayer_manip.generators import _yaw
@@ -106,7 +106,8 @@ class PBSampler(ClutterSampler):
         G = world.held[arm][1]  # the tool's heading at each variant is fixed: the base stands behind it
         found = False
         for cand in self._putdowns(problem, world, obj, arm, step.args[2], step.args[3],
-                                   [(x, y, lambda h, P=P: P, _yaw(P @ np.linalg.inv(G))) for P in variants], rng, per_spot=8):
+                                   [(x, y, lambda h, P=P: P, _yaw(P @ np.linalg.inv(G))) for P in variants], z, rng,
+                                   per_spot=8):
             found = True
             yield cand
         if not found:
@@ -152,10 +153,10 @@ class PBSampler(ClutterSampler):
         return sorted(grasps, key=lambda g: not any(_same_grasp(problem.geometry, obj, np.linalg.inv(g[1]) @ P, F)
                                                     for F in fits))
 
-    def _putdowns(self, problem, world, obj, arm, bp_ref, pd_ref, spots, rng, limit: int = 4, per_spot: int = 4):
+    def _putdowns(self, problem, world, obj, arm, bp_ref, pd_ref, spots, z, rng, limit: int = 4, per_spot: int = 4):
         """Candidates (base, lowering, retreat) for the object poses ``spots`` offers: (x, y, pose(heading),
-        the tool's heading if the pose fixes it) with heading the direction from the base to (x, y);
-        fewest objects in the way first."""
+        the tool's heading if the pose fixes it) with heading the direction from the base to (x, y), the
+        object's centre ``z`` above the floor; fewest objects in the way first."""
         geometry = problem.geometry
 
         overlap = {}  # the objects where the last pose offered stands (putdown_motion asks once per try)
@@ -171,19 +172,28 @@ class PBSampler(ClutterSampler):
             return at
 
         found = []
-        for rank, (x, y, pose_at, heading) in enumerate(spots):
-            if rank >= 3 * limit and found:
-                break  # past the best spots, only search on while nothing at all was found
-            for _ in range(per_spot if rank < 3 * limit else 2 * per_spot):
-                tried = putdown_motion(geometry, world, arm, x, y, clear_of_fixed(pose_at), rng, heading)
-                if tried is None:
-                    continue
-                base, P, T, lower, back, hit, sweep = tried
-                hit |= overlap["hits"]  # objects where it is put
-                found.append(((len(hit), len(sweep)), rank, base, x, y, P, T, lower, back))
-                break
-            if len(found) >= limit or (found and found[-1][0] == (0, 0) and len(found) >= 2):
-                break
+
+        def search(spots, tries, z=None):
+            for rank, (x, y, pose_at, heading) in enumerate(spots):
+                if rank >= 3 * limit and found:
+                    break  # past the best spots, only search on while nothing at all was found
+                for _ in range(tries if rank < 3 * limit else 2 * tries):
+                    tried = putdown_motion(geometry, world, arm, x, y, clear_of_fixed(pose_at), rng, heading, z)
+                    if tried is None:
+                        continue
+                    base, P, T, lower, back, hit, sweep = tried
+                    hit |= overlap["hits"]  # objects where it is put
+                    found.append(((len(hit), len(sweep)), rank, base, x, y, P, T, lower, back))
+                    break
+                if len(found) >= limit or (found and found[-1][0] == (0, 0) and len(found) >= 2):
+                    break
+
+        search(spots, per_spot)
+        if not found and geometry.robot.mobile:
+            # none from Clutter's annulus (a spot at the back of a deep table): the best spots again, from
+            # bases where the reach map says the arm reaches the spot's height and the base can stand (its
+            # flood fill errs on the reachable side: most of those near the table's edge collide with it)
+            search(spots[:3 * limit], 3 * per_spot, z)
         found.sort(key=lambda f: (f[0], f[1]))
         for nhit, _, base, x, y, P, T, lower, back in found:
             yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])),
