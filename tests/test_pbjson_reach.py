@@ -2,6 +2,7 @@
 from 1.0-1.1 m, the shoulder turned towards them, beyond Clutter's annulus (0.55-0.95 m, facing the spot). When
 the annulus finds nothing, the pick and put-down generators draw bases where the reach map says the arm
 reaches and the base can stand (interlayer_manip.reachmap.reaching_base)."""
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -52,3 +53,28 @@ def test_a_goal_pose_at_the_back_of_a_deep_table_gets_put_downs(tmp_path):
     step = GroundStep("place_at_goal", ("a", "left", "bpfgp_a_left", "gpfgp_a_left"))
     found = list(sampler(p, step, w, np.random.default_rng(0)))
     assert found and all(g.at_goal_pose("a", np.asarray(c.values["object_pose"])) for c in found)
+
+
+def test_a_grasp_the_arm_reaches_the_goal_pose_with_from_no_base_asks_for_a_regrasp(tmp_path):
+    """Held across its long sides (the tool along the table's length), a goes to its goal pose from a base
+    beside the table, against the wall: none stands there, so the put-down asks for a grasp from the front
+    (BadGrasp, as a hand that hits a fixed obstacle does). Held from the front, it asks for nothing.
+    Mutation: regrasps' fits() without the reach map (the hand's clearance alone): no regrasp asked."""
+    from interlayer_manip.grasps import grasp_poses
+    from interlayer_manip.state import pose4
+    from interlayer_pbjson.samplers import PBSampler, _kind
+
+    p = load(tmp_path, deep_table(goal_poses={"a": "initial"}))
+    g = p.geometry
+    w0 = g.initial_world()
+    P = w0.objects["a"]
+    C = g.layout.extra["goal_centres"]["a"]
+    variants = [C, C @ pose4(0, 0, 0, math.pi)]
+    asked = {}
+    for heading in (0.0, math.pi / 2):  # the tool along x (from the front), along y (from the table's end)
+        _, T = grasp_poses(g, "a", P, heading, ("side",), np.random.default_rng(0), n_side=1)[0]
+        w = replace(w0, objects={}, held={"left": ("a", np.linalg.inv(T) @ P)})
+        asked[heading] = PBSampler(0).regrasps(p, w, "a", "left", variants)
+    assert asked[0.0] == []
+    assert asked[math.pi / 2] and all(_kind(np.linalg.inv(F)) == "side" for F in asked[math.pi / 2])
+    assert all(abs(math.cos(math.atan2(*(C @ np.linalg.inv(F))[1::-1, 0]))) > 0.9 for F in asked[math.pi / 2])

@@ -130,6 +130,12 @@ def reaching_base(geometry, arm, rng, x, y, z, heading=None):
     r, a = r + rng.uniform(-JITTER[0], JITTER[0]), a + rng.uniform(-JITTER[1], JITTER[1])
     if heading is None:
         b += rng.uniform(-BEARING_STEP / 6, BEARING_STEP / 6)
+    return base_of(x, y, (r, a, b))
+
+
+def base_of(x, y, option) -> tuple:
+    """The base pose of a :func:`standing` option (distance, bearing, world direction) for the spot (x, y)."""
+    r, a, b = option
     return float(x - r * math.cos(b)), float(y - r * math.sin(b)), float(_wrap(b - a))
 
 

@@ -116,25 +116,33 @@ class PBSampler(ClutterSampler):
                 self.wanted[obj] = fits
                 kinds = sorted({_kind(np.linalg.inv(F)) for F in fits})
                 yield Candidate((), {HELD_GRASP: f"holding {obj} as it does, the hand hits a fixed obstacle at {obj}'s goal "
-                                                 f"pose; another {' or '.join(kinds)} grasp is clear there"}, "regrasp")
+                                                 f"pose or the arm reaches it there from no base pose; another "
+                                                 f"{' or '.join(kinds)} grasp fits there"}, "regrasp")
 
     def regrasps(self, problem, world, obj, arm, variants) -> list:
-        """Grasps (tool_T_object) of ``obj`` other than the held one whose hand, opened as
-        they need, is clear of fixed obstacles at one of the goal pose's ``variants`` and where it
-        retreats from; empty unless the held grasp's hand hits a fixed obstacle at every variant (then
-        only a regrasp can put ``obj`` there, and nothing changes for a put-down that fails otherwise)."""
-        from interlayer_manip.generators import _problem_grasps, grasp_poses
+        """Grasps (tool_T_object) of ``obj`` other than the held one that fit at one of the goal pose's
+        ``variants``: the hand, opened as they need, clear of fixed obstacles there and where it retreats
+        from, and (a level tool, a mobile base) a base pose clear of fixed obstacles from which the reach map
+        says the arm reaches it. Empty unless the held grasp fits at no variant (then only a regrasp can put
+        ``obj`` there, and nothing changes for a put-down that fails otherwise)."""
+        from interlayer_manip.generators import _base_free, _problem_grasps, _yaw, grasp_poses
+        from interlayer_manip.reachmap import base_of, standing
 
         geometry = problem.geometry
         G = world.held[arm][1]
         w = replace(world, held={a: h for a, h in world.held.items() if a != arm})
 
-        def clear(T, grasp):
+        def fits(T, grasp):
             hand = w.with_gripper(arm, geometry.opening(obj, grasp))
             back = trans(0, 0, PRE_GRASP) @ T if _kind(T) == "top" else T @ trans(-PRE_GRASP, 0, 0)
-            return geometry.hand_free(hand, arm, T, (obj,)) and geometry.hand_free(hand, arm, back, (obj,))
+            if not (geometry.hand_free(hand, arm, T, (obj,)) and geometry.hand_free(hand, arm, back, (obj,))):
+                return False
+            # a base pose clear of fixed obstacles from which the reach map says the arm reaches T (it measures
+            # level tools: a top grasp, or a fixed base's, counts as reached)
+            return _kind(T) == "top" or not geometry.robot.mobile or any(
+                _base_free(geometry, w, base_of(T[0, 3], T[1, 3], o)) for o in standing(geometry, arm, *T[:3, 3], _yaw(T)))
 
-        if any(clear(P @ np.linalg.inv(G), G) for P in variants):
+        if any(fits(P @ np.linalg.inv(G), G) for P in variants):
             return []  # the held grasp fits: the put-down failed for another reason
         rng = np.random.default_rng(0)
         out = []
@@ -142,7 +150,7 @@ class PBSampler(ClutterSampler):
             for heading in np.linspace(-math.pi, math.pi, 8, endpoint=False):
                 for _, T in grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng, n_side=1):
                     F = np.linalg.inv(T) @ P
-                    if not any(_same_grasp(geometry, obj, F, H) for H in [G, *out]) and clear(T, F):
+                    if not any(_same_grasp(geometry, obj, F, H) for H in [G, *out]) and fits(T, F):
                         out.append(F)
         return out
 
