@@ -78,3 +78,28 @@ def test_a_grasp_the_arm_reaches_the_goal_pose_with_from_no_base_asks_for_a_regr
     assert asked[0.0] == []
     assert asked[math.pi / 2] and all(_kind(np.linalg.inv(F)) == "side" for F in asked[math.pi / 2])
     assert all(abs(math.cos(math.atan2(*(C @ np.linalg.inv(F))[1::-1, 0]))) > 0.9 for F in asked[math.pi / 2])
+
+
+def test_a_pick_of_an_object_bound_for_a_goal_pose_ranks_the_grasps_that_fit_there_first(tmp_path):
+    """a stands on a table open on every side; its goal pose is at the back of the deep counter, where only
+    a grasp with the tool along the counter's depth is put down (test above). Among pick candidates with as
+    many objects in the way, those with such a grasp come first (before: the shortest drive first).
+    Mutation: PBSampler without its ranked_grasps (Clutter's ranking): a non-fitting grasp ranks first."""
+    from interlayer.refine import stable_seed
+    from interlayer_pbjson.samplers import PBSampler, _same_grasp
+
+    data = deep_table(goal_poses={"a": [1, 0, 0, 0, 2.244, 0.0, 0.771]})
+    data["bodies"][2]["point"] = {"x": 0.3, "y": 1.4, "z": 0.771}  # a on the open table
+    data["bodies"].append(_body("open", (0.3, 1.4, 0.385), [_box((0.25, 0.25, 0.385))]))
+    data["task"]["table_names"] = ["counter", "open"]
+    p = load(tmp_path, data)
+    w = p.geometry.initial_world()
+    P = w.objects["a"]
+    sampler = PBSampler(stable_seed(0, 0, PBSampler.__qualname__))
+    fits = sampler.goal_grasps(p, "a")
+    assert fits
+    for arm in ("left", "right"):
+        ranked = sampler.ranked_grasps(p, w, "a", arm)
+        flags = [(c[0], not any(_same_grasp(p.geometry, "a", np.linalg.inv(c[4]) @ P, F) for F in fits)) for c in ranked]
+        assert False in [f for _, f in flags] and True in [f for _, f in flags], flags  # both kinds offered
+        assert flags == sorted(flags, key=lambda f: f), flags
