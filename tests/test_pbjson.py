@@ -688,7 +688,11 @@ def test_a_put_down_that_fails_for_another_reason_than_the_grasp_asks_for_no_reg
     P = world.objects["a"]
     offered = [("top", P @ np.linalg.inv(top)), ("side", P @ np.linalg.inv(side))]
     assert [k for k, _ in sampler.order_grasps(problem, "a", P, offered)] == ["side", "top"]
-    assert [k for k, _ in PBSampler(0).order_grasps(problem, "a", P, offered)] == ["top", "side"]  # else as offered
+    # before: the grasps that fit at the goal pose (side: under the shelf) first, for an object with one
+    assert [k for k, _ in PBSampler(0).order_grasps(problem, "a", P, offered)] == ["side", "top"]
+    no_goal = load(tmp_path, {**shelf_scene(), "task": {**shelf_scene()["task"], "goal_poses": {}, "goal_holding": "a"}},
+                         "held.json")
+    assert [k for k, _ in PBSampler(0).order_grasps(no_goal, "a", P, offered)] == ["top", "side"]  # no goal pose: as offered
 
 
 def test_a_grasp_that_cannot_reach_the_goal_pose_is_forgotten_when_the_object_is_picked_again(tmp_path):

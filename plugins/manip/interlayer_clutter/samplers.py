@@ -9,6 +9,7 @@ import numpy as np
 from interlayer.refine import Candidate, EpochState
 from interlayer_manip.generators import _base_free
 from interlayer_manip.grasps import FIXED_SPREAD
+from interlayer_manip.reachmap import reaching_base
 from interlayer_manip.scene import REST_GAP, base_limits, table_top
 from interlayer_manip.state import pose4, wrap
 
@@ -212,7 +213,11 @@ class ClutterSampler(EpochState):
             if free >= n_bases and found:
                 break  # past the first bases, only search on while nothing at all was found
             draws += 1
-            base = base_near(geometry, x, y, rng)
+            if (free < n_bases and draws <= BASE_DRAWS * n_bases) or not geometry.robot.mobile:
+                base = base_near(geometry, x, y, rng)
+            else:  # the annulus found nothing (at the back of a deep table it rarely can): bases where the
+                # reach map says the arm reaches and the base can stand
+                base = reaching_base(geometry, arm, rng, x, y, P[2, 3])
             if base is None or not _base_free(geometry, w0, base):
                 continue
             free += 1
@@ -358,14 +363,18 @@ class ClutterSampler(EpochState):
         return found[:limit]
 
 
-def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None):
+def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None, z=None):
     """One try at putting what ``arm`` holds down at (x, y): a base pose facing the spot (behind the tool
-    if its ``heading`` is fixed), the object's pose ``pose_at(tool heading)`` (None: none there), IK, the
-    lowering and the retreat. Returns (base, object pose, tool pose, lowering, retreat, movables on the
-    lowering and retreat, movables on the straight joint-space line from the arm's posture) or None."""
+    if its ``heading`` is fixed; with ``z``, the object's height, one the reach map offers, else one of the
+    annulus), the object's pose ``pose_at(tool heading)`` (None: none there), IK, the lowering and the
+    retreat. Returns (base, object pose, tool pose, lowering, retreat, movables on the lowering and
+    retreat, movables on the straight joint-space line from the arm's posture) or None."""
     from interlayer_manip.generators import LIFT, PRE_GRASP, _line, trans
 
-    base = base_near(geometry, x, y, rng, heading=heading)
+    if z is None or not geometry.robot.mobile:
+        base = base_near(geometry, x, y, rng, heading=heading)
+    else:
+        base = reaching_base(geometry, arm, rng, x, y, z, heading)
     if base is None or not _base_free(geometry, world, base, tuck=arm):
         return None
     spread = 0.3 if geometry.robot.mobile else FIXED_SPREAD  # a fixed base turns the hand, not itself (grasp_poses)

@@ -90,6 +90,55 @@ def around(geometry, arm, rng, x, y, z, bearings=(), level=True):
     return base_near(rng, cells, x, y, bearings) if cells else annulus(rng, x, y)
 
 
+def standing(geometry, arm, x, y, z, heading=None) -> list:
+    """The (distance, bearing, world direction) of each cell of ``reach_cells(arm, z)`` from which the base,
+    seeing (x, y) along that world direction (every BEARING_STEP / 3, or along ``heading`` alone: a tool
+    heading fixed by the object's pose and grasp), stands within its limits and where it can drive (the
+    layout's ``base_area``, when it knows one). Cached per question: a search asks about one spot often."""
+    from .scene import base_limits
+
+    layout = geometry.layout
+    key = (id(layout), arm, round(z / 0.05), float(x), float(y), heading)
+    hit = _STANDING.get(key)
+    if hit is None or hit[0] is not layout:
+        (lx, hx), (ly, hy) = base_limits(layout)
+        area = layout.extra.get("base_area")
+        ways = (heading,) if heading is not None else np.arange(-math.pi, math.pi, BEARING_STEP / 3)
+        out = []
+        for r, a in reach_cells(geometry.robot, arm, z):
+            for b in ways:
+                bx, by = x - r * math.cos(b), y - r * math.sin(b)
+                if lx <= bx <= hx and ly <= by <= hy and (area is None or area(bx, by)):
+                    out.append((r, a, float(b)))
+        if len(_STANDING) > 512:
+            _STANDING.clear()
+        hit = _STANDING[key] = (layout, out)
+    return hit[1]
+
+
+_STANDING: dict = {}  # (id of the layout, arm, height, x, y, heading) -> (the layout, the cells that stand)
+
+
+def reaching_base(geometry, arm, rng, x, y, z, heading=None):
+    """A base pose from which ``arm`` reaches a level grasp at (x, y, z) and its pre-grasp, drawn from
+    :func:`standing` (None: no cell stands anywhere the base can). An annulus that faces the spot misses
+    what lies at the back of a deep table: the arm reaches it from 1.0-1.1 m, the shoulder turned to it."""
+    options = standing(geometry, arm, x, y, z, heading)
+    if not options:
+        return None
+    r, a, b = options[int(rng.integers(len(options)))]
+    r, a = r + rng.uniform(-JITTER[0], JITTER[0]), a + rng.uniform(-JITTER[1], JITTER[1])
+    if heading is None:
+        b += rng.uniform(-BEARING_STEP / 6, BEARING_STEP / 6)
+    return base_of(x, y, (r, a, b))
+
+
+def base_of(x, y, option) -> tuple:
+    """The base pose of a :func:`standing` option (distance, bearing, world direction) for the spot (x, y)."""
+    r, a, b = option
+    return float(x - r * math.cos(b)), float(y - r * math.sin(b)), float(_wrap(b - a))
+
+
 def open_bearings(geometry, world, arm, obj, P):
     """The directions (world yaw, BEARING_STEP apart) along which the hand alone, opened for ``obj``,
     reaches a level grasp of it at P and its pre-grasp without touching a fixed obstacle: a cubby's mouth

@@ -35,6 +35,7 @@ class PBSampler(ClutterSampler):
     def __init__(self, seed):
         super().__init__(seed)
         self.wanted: dict = {}  # object -> grasps (tool_T_object) that fit at its goal pose, after a regrasp was learned
+        self.fitting: dict = {}  # object -> grasps that fit at its goal pose (goal_grasps)
 
     def __call__(self, problem, step, world, rng):
         if step.action == "pick":
@@ -101,7 +102,7 @@ class PBSampler(ClutterSampler):
             return P
 
         yield from self._putdowns(problem, world, obj, arm, step.args[4], step.args[5],
-                                  [(x, y, lambda h, x=x, y=y, c=c: pose_at(x, y, h, c), None) for x, y, c in spots], rng)
+                                  [(x, y, lambda h, x=x, y=y, c=c: pose_at(x, y, h, c), None) for x, y, c in spots], z, rng)
 
     def place_at_goal(self, problem, step, world, rng):
         from interlayer_manip.generators import _yaw
@@ -111,15 +112,13 @@ class PBSampler(ClutterSampler):
         if world.holder(obj) != arm:
             return
         geometry.sync(world)
-        C = geometry.layout.extra["goal_centres"][obj]
-        period = geometry.symmetry(obj) or math.pi / 2
-        yaw = math.atan2(C[1, 0], C[0, 0])
-        x, y, z = (float(v) for v in C[:3, 3])
-        variants = [pose4(x, y, z, yaw + k * period) for k in range(int(round(2 * math.pi / period)))]
+        variants = goal_variants(geometry, obj)
+        x, y, z = (float(v) for v in variants[0][:3, 3])
         G = world.held[arm][1]  # the tool's heading at each variant is fixed: the base stands behind it
         found = False
         for cand in self._putdowns(problem, world, obj, arm, step.args[2], step.args[3],
-                                   [(x, y, lambda h, P=P: P, _yaw(P @ np.linalg.inv(G))) for P in variants], rng, per_spot=8):
+                                   [(x, y, lambda h, P=P: P, _yaw(P @ np.linalg.inv(G))) for P in variants], z, rng,
+                                   per_spot=8):
             found = True
             yield cand
         if not found:
@@ -128,47 +127,61 @@ class PBSampler(ClutterSampler):
                 self.wanted[obj] = fits
                 kinds = sorted({_kind(np.linalg.inv(F)) for F in fits})
                 yield Candidate((), {HELD_GRASP: f"holding {obj} as it does, the hand hits a fixed obstacle at {obj}'s goal "
-                                                 f"pose; another {' or '.join(kinds)} grasp is clear there"}, "regrasp")
+                                                 f"pose or the arm reaches it there from no base pose; another "
+                                                 f"{' or '.join(kinds)} grasp fits there"}, "regrasp")
 
     def regrasps(self, problem, world, obj, arm, variants) -> list:
-        """Grasps (tool_T_object) of ``obj`` other than the held one whose hand, opened as
-        they need, is clear of fixed obstacles at one of the goal pose's ``variants`` and where it
-        retreats from; empty unless the held grasp's hand hits a fixed obstacle at every variant (then
-        only a regrasp can put ``obj`` there, and nothing changes for a put-down that fails otherwise)."""
-        from interlayer_manip.generators import _problem_grasps, grasp_poses
-
-        geometry = problem.geometry
+        """Grasps (tool_T_object) of ``obj`` other than the held one that fit at one of the goal pose's
+        ``variants`` (``_fits``); empty unless the held grasp fits at no variant (then only a regrasp can put
+        ``obj`` there, and nothing changes for a put-down that fails otherwise)."""
         G = world.held[arm][1]
         w = replace(world, held={a: h for a, h in world.held.items() if a != arm})
-
-        def clear(T, grasp):
-            hand = w.with_gripper(arm, geometry.opening(obj, grasp))
-            back = trans(0, 0, PRE_GRASP) @ T if _kind(T) == "top" else T @ trans(-PRE_GRASP, 0, 0)
-            return geometry.hand_free(hand, arm, T, (obj,)) and geometry.hand_free(hand, arm, back, (obj,))
-
-        if any(clear(P @ np.linalg.inv(G), G) for P in variants):
+        if any(_fits(problem, w, obj, arm, P @ np.linalg.inv(G), G) for P in variants):
             return []  # the held grasp fits: the put-down failed for another reason
-        rng = np.random.default_rng(0)
-        out = []
-        for P in variants:
-            for heading in np.linspace(-math.pi, math.pi, 8, endpoint=False):
-                for _, T in grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng, n_side=1):
-                    F = np.linalg.inv(T) @ P
-                    if not any(_same_grasp(geometry, obj, F, H) for H in [G, *out]) and clear(T, F):
-                        out.append(F)
-        return out
+        return _fitting(problem, w, obj, arm, variants, [G])
+
+    def goal_grasps(self, problem, obj) -> list:
+        """The grasps (tool_T_object) of ``obj`` that fit at its goal pose for either arm (``_fitting``),
+        asked once per epoch: a pick of an object bound for a goal pose tries them first, so that the
+        put-down there needs no regrasp."""
+        if obj not in self.fitting:
+            geometry = problem.geometry
+            w = geometry.initial_world()  # obj away, the arms tucked (as at a drive's end)
+            w = replace(w, objects={k: v for k, v in w.objects.items() if k != obj},
+                        arms={a: tuple(geometry.robot.home(a)) for a in geometry.robot.arms})
+            found = []
+            for arm in geometry.robot.arms:
+                found += _fitting(problem, w, obj, arm, goal_variants(geometry, obj), found)
+            self.fitting[obj] = found
+        return self.fitting[obj]
+
+    def ranked_grasps(self, problem, world, obj, arm):
+        """Clutter's ranking, with the candidates whose grasp fits at obj's goal pose (``order_grasps``) first
+        among those with as many objects in the way."""
+        ranked = super().ranked_grasps(problem, world, obj, arm)
+        fits = self._goal_fits(problem, obj)
+        if not fits:
+            return ranked
+        P = world.objects[obj]
+        return sorted(ranked, key=lambda c: (c[0], not any(_same_grasp(problem.geometry, obj, np.linalg.inv(c[4]) @ P, F)
+                                                           for F in fits), c[1]))
+
+    def _goal_fits(self, problem, obj):
+        return self.wanted.get(obj) or (self.goal_grasps(problem, obj)
+                                        if obj in problem.geometry.layout.extra.get("goal_centres", ()) else ())
 
     def order_grasps(self, problem, obj, P, grasps):
-        """Once a put-down at obj's goal pose needed a regrasp (see ``regrasps``), the grasps that fit there
-        first (each base's search keeps the first that IK reaches)."""
-        fits = self.wanted.get(obj, ())
+        """The grasps that fit at obj's goal pose first (each base's search keeps the first that IK reaches):
+        once a put-down there needed a regrasp, those ``regrasps`` found; before, for an object with a goal
+        pose, ``goal_grasps``."""
+        fits = self._goal_fits(problem, obj)
         return sorted(grasps, key=lambda g: not any(_same_grasp(problem.geometry, obj, np.linalg.inv(g[1]) @ P, F)
                                                     for F in fits))
 
-    def _putdowns(self, problem, world, obj, arm, bp_ref, pd_ref, spots, rng, limit: int = 4, per_spot: int = 4):
+    def _putdowns(self, problem, world, obj, arm, bp_ref, pd_ref, spots, z, rng, limit: int = 4, per_spot: int = 4):
         """Candidates (base, lowering, retreat) for the object poses ``spots`` offers: (x, y, pose(heading),
-        the tool's heading if the pose fixes it) with heading the direction from the base to (x, y);
-        fewest objects in the way first."""
+        the tool's heading if the pose fixes it) with heading the direction from the base to (x, y), the
+        object's centre ``z`` above the floor; fewest objects in the way first."""
         geometry = problem.geometry
 
         overlap = {}  # the objects where the last pose offered stands (putdown_motion asks once per try)
@@ -184,19 +197,28 @@ class PBSampler(ClutterSampler):
             return at
 
         found = []
-        for rank, (x, y, pose_at, heading) in enumerate(spots):
-            if rank >= 3 * limit and found:
-                break  # past the best spots, only search on while nothing at all was found
-            for _ in range(per_spot if rank < 3 * limit else 2 * per_spot):
-                tried = putdown_motion(geometry, world, arm, x, y, clear_of_fixed(pose_at), rng, heading)
-                if tried is None:
-                    continue
-                base, P, T, lower, back, hit, sweep = tried
-                hit |= overlap["hits"]  # objects where it is put
-                found.append(((len(hit), len(sweep)), rank, base, x, y, P, T, lower, back))
-                break
-            if len(found) >= limit or (found and found[-1][0] == (0, 0) and len(found) >= 2):
-                break
+
+        def search(spots, tries, z=None):
+            for rank, (x, y, pose_at, heading) in enumerate(spots):
+                if rank >= 3 * limit and found:
+                    break  # past the best spots, only search on while nothing at all was found
+                for _ in range(tries if rank < 3 * limit else 2 * tries):
+                    tried = putdown_motion(geometry, world, arm, x, y, clear_of_fixed(pose_at), rng, heading, z)
+                    if tried is None:
+                        continue
+                    base, P, T, lower, back, hit, sweep = tried
+                    hit |= overlap["hits"]  # objects where it is put
+                    found.append(((len(hit), len(sweep)), rank, base, x, y, P, T, lower, back))
+                    break
+                if len(found) >= limit or (found and found[-1][0] == (0, 0) and len(found) >= 2):
+                    break
+
+        search(spots, per_spot)
+        if not found and geometry.robot.mobile:
+            # none from Clutter's annulus (a spot at the back of a deep table): the best spots again, from
+            # bases where the reach map says the arm reaches the spot's height and the base can stand (its
+            # flood fill errs on the reachable side: most of those near the table's edge collide with it)
+            search(spots[:3 * limit], 3 * per_spot, z)
         found.sort(key=lambda f: (f[0], f[1]))
         for nhit, _, base, x, y, P, T, lower, back in found:
             yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])),
@@ -229,6 +251,50 @@ def _same_grasp(geometry, obj, F, H) -> bool:
         return True
     # the same approach axis, and the fingers closing along the same line (a top grasp may turn 90 degrees)
     return float(A[:, 0] @ B[:, 0]) > math.cos(0.5) and abs(float(A[:, 1] @ B[:, 1])) > math.cos(0.5)
+
+
+def goal_variants(geometry, obj) -> list:
+    """obj's goal pose and its turns by the shape's yaw symmetry (a quarter turn for a cylinder: its side
+    grasps all look alike, four headings are enough)."""
+    C = geometry.layout.extra["goal_centres"][obj]
+    period = geometry.symmetry(obj) or math.pi / 2
+    yaw = math.atan2(C[1, 0], C[0, 0])
+    x, y, z = (float(v) for v in C[:3, 3])
+    return [pose4(x, y, z, yaw + k * period) for k in range(int(round(2 * math.pi / period)))]
+
+
+def _fits(problem, world, obj, arm, T, grasp) -> bool:
+    """Tool pose T (with grasp, tool_T_object) can put ``obj`` down: the hand, opened as the grasp needs, clear
+    of fixed obstacles at T and where it retreats from, and (a level tool, a mobile base) a base pose clear
+    of fixed obstacles from which the reach map says the arm reaches T (it measures level tools: a top
+    grasp, or a fixed base's, counts as reached)."""
+    from interlayer_manip.generators import _base_free, _yaw
+    from interlayer_manip.reachmap import base_of, standing
+
+    geometry = problem.geometry
+    hand = world.with_gripper(arm, geometry.opening(obj, grasp))
+    back = trans(0, 0, PRE_GRASP) @ T if _kind(T) == "top" else T @ trans(-PRE_GRASP, 0, 0)
+    if not (geometry.hand_free(hand, arm, T, (obj,)) and geometry.hand_free(hand, arm, back, (obj,))):
+        return False
+    return _kind(T) == "top" or not geometry.robot.mobile or any(
+        _base_free(geometry, world, base_of(T[0, 3], T[1, 3], o)) for o in standing(geometry, arm, *T[:3, 3], _yaw(T)))
+
+
+def _fitting(problem, world, obj, arm, variants, known) -> list:
+    """The grasps (tool_T_object) of ``obj`` that fit (``_fits``) at one of the pose ``variants``, other than
+    those ``known``: the problem's grasp kinds, from 8 headings (the same draws every call)."""
+    from interlayer_manip.generators import _problem_grasps, grasp_poses
+
+    geometry = problem.geometry
+    rng = np.random.default_rng(0)
+    out = []
+    for P in variants:
+        for heading in np.linspace(-math.pi, math.pi, 8, endpoint=False):
+            for _, T in grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng, n_side=1):
+                F = np.linalg.inv(T) @ P
+                if not any(_same_grasp(geometry, obj, F, H) for H in [*known, *out]) and _fits(problem, world, obj, arm, T, F):
+                    out.append(F)
+    return out
 
 
 def _spec_at(spec, P):
