@@ -258,11 +258,12 @@ class Refiner:
                 return None
             gen = gens[i]
             cand = gen.get_next()
-            if cand is None and partial and not drawn.get(i):  # nothing to instantiate the step's references with
-                yield PartialRefinement({k: v for k, v in outcomes.items() if k < i}, worlds[i], i,
-                                        Failure(NO_CANDIDATES, detail=f"the pose generator of {plan[i].action} yielded "
-                                                                      f"no candidate"), Candidate((), {}, "no candidate"))
-            if cand is None and not drawn.get(i):
+            if cand is None and not drawn.get(i):  # nothing to instantiate the step's references with
+                if partial:
+                    yield PartialRefinement({k: v for k, v in outcomes.items() if k < i}, worlds[i], i,
+                                            Failure(NO_CANDIDATES, detail=f"the pose generator of {plan[i].action} "
+                                                                          f"yielded no candidate"),
+                                            Candidate((), {}, "no candidate"))
                 # an empty generator is futile work like a failed attempt and counts as one: else each
                 # backtrack re-refines the earlier steps' successes (free) and asks it again, without end
                 failures[i] = failures.get(i, 0) + 1
