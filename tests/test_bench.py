@@ -13,7 +13,7 @@ import pytest
 
 from interlayer.bench import db
 from interlayer.bench.report import write_report
-from interlayer.bench.runner import run_suite
+from interlayer.bench.runner import plan_runs, run_suite
 from interlayer.bench.suite import load_suite, mark_skipped, parse_combos, parse_seeds
 from interlayer.cli import main
 from interlayer.errors import UserError
@@ -304,3 +304,20 @@ def test_the_folder_suite_runs_every_file_of_the_users_folder_and_reports_each(t
         assert err.count("\n") == 0 and why in err, err
     assert main(["bench", "--suite", "pbjson-folder", "--db", str(db_path)]) == 2
     assert "give the folder with --problems DIR" in capsys.readouterr().err
+
+
+def test_a_rows_own_time_limit_is_used_unless_the_command_line_sets_one(tmp_path):
+    path = suite_file(tmp_path, "limits", [("slow", GRIPPER, [], "time_limit = 7"), ("fast", GRIPPER, [])],
+                      seeds="0", time_limit=30)
+    suite = load_suite(str(path))
+    assert [r.time_limit for r in suite.rows] == [7, 30]
+    specs = plan_runs(suite, set(), memory_mb=None, grace=None, keep_runs=None)
+    assert [(s["row"], s["time_limit"]) for s in specs] == [("slow", 7), ("fast", 30)]
+    assert "planner.time_limit=7" in specs[0]["overrides"]
+    # a run already recorded at the row's own limit is done
+    assert [s["row"] for s in plan_runs(suite, {("slow", "default", 0, 7)}, None, None, None)] == ["fast"]
+    assert [r.time_limit for r in load_suite(str(path), time_limit=5).rows] == [5, 5]
+    assert [r.time_limit for r in load_suite(str(path), quick=True).rows] == [60, 60]
+    bad = suite_file(tmp_path, "bad", [("slow", GRIPPER, [], 'time_limit = "long"')])
+    with pytest.raises(UserError, match="row 'slow'.*positive number of seconds"):
+        load_suite(str(bad))

@@ -123,17 +123,23 @@ def plan_runs(suite: Suite, done: set, memory_mb, grace, keep_runs) -> list[dict
             continue
         for label, combo in suite.combos:
             for seed in row.seeds:
-                if (row.name, label, seed, suite.time_limit) in done:
+                if (row.name, label, seed, row.time_limit) in done:
                     continue
-                overrides = [*row.overrides, *combo, f"planner.seed={seed}", f"planner.time_limit={suite.time_limit:g}"]
+                overrides = [*row.overrides, *combo, f"planner.seed={seed}", f"planner.time_limit={row.time_limit:g}"]
                 keep = None
                 if keep_runs:
                     slug = "".join(c if c.isalnum() else "_" for c in f"{row.name}_{label}")
                     keep = str(Path(keep_runs).resolve() / suite.name / slug / f"seed{seed}")
                 specs.append({"suite": suite.name, "row": row.name, "combo": label, "seed": seed,
-                              "time_limit": suite.time_limit, "config": row.config, "overrides": overrides,
+                              "time_limit": row.time_limit, "config": row.config, "overrides": overrides,
                               "memory_mb": memory_mb, "grace": grace, "keep_dir": keep})
     return specs
+
+
+def _limits(suite: Suite) -> str:
+    """'120 s', or '120 s; cubby 300 s' when rows set their own."""
+    own = [f"{r.name} {r.time_limit:g} s" for r in suite.rows if r.time_limit != suite.time_limit and not r.skipped]
+    return "; ".join([f"{suite.time_limit:g} s", *own])
 
 
 def _local(specs, jobs, claim):
@@ -223,7 +229,7 @@ def run_suite(suite: Suite, db_path, jobs: int | None = None, executor: str = "l
     specs = plan_runs(suite, db.finished_keys(con, suite.name), memory_mb, grace, keep_runs)
     total = sum(len(r.seeds) for r in suite.rows if not r.skipped) * len(suite.combos)
     log(f"suite {suite.name}: {total - len(specs)} of {total} runs already in {db_path}, {len(specs)} to run "
-        f"(planner.time_limit {suite.time_limit:g} s)")
+        f"(planner.time_limit {_limits(suite)})")
     summary = {"ran": 0, "statuses": {}, "skipped_rows": skipped, "interrupted": False, "claimed_elsewhere": 0}
     if not specs:
         return summary

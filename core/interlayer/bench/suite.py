@@ -4,7 +4,7 @@ A suite file (TOML)::
 
     name = "mine"
     seeds = "0-9"                 # every row's default; a row may set its own
-    time_limit = 120              # seconds per run (planner.time_limit)
+    time_limit = 120              # seconds per run (planner.time_limit); a row may set its own
     combo = ["planner.task=ff,fast-downward"]   # optional: each key's values are crossed
     [quick]                       # what --quick uses
     seeds = "0-1"
@@ -40,6 +40,7 @@ class Row:
     config: str  # absolute path
     overrides: list
     seeds: list
+    time_limit: float
     paper: dict = field(default_factory=dict)
     skipped: str = ""  # why the row cannot run on this machine, or ''
 
@@ -50,7 +51,7 @@ class Suite:
     path: str
     rows: list
     combos: list  # [(label, [overrides])]
-    time_limit: float
+    time_limit: float  # the suite's; a row's own is Row.time_limit
 
 
 def parse_seeds(text) -> list[int]:
@@ -130,7 +131,8 @@ def load_suite(name: str, quick: bool = False, seeds=None, time_limit=None, comb
     if not isinstance(data.get("rows"), list) or not data["rows"]:
         raise UserError(f"The suite {path} has no [[rows]]; add at least one row with a name and a config.")
     quick_cfg = {**QUICK, **data.get("quick", {})} if quick else {}
-    limit = float(time_limit or quick_cfg.get("time_limit") or data.get("time_limit", 120))
+    limit = _seconds(path, "the suite", data.get("time_limit", 120))
+    forced = time_limit or quick_cfg.get("time_limit")  # --time-limit and --quick win over every row's own
     rows = []
     for i, r in enumerate(data["rows"]):
         if "name" not in r or "config" not in r:
@@ -139,8 +141,9 @@ def load_suite(name: str, quick: bool = False, seeds=None, time_limit=None, comb
         sets = r.get("set", [])
         if isinstance(sets, str) or not all(isinstance(s, str) for s in sets):
             raise UserError(f"The row '{r['name']}' of {path}: set must be a list of \"key=value\" strings.")
+        row_limit = forced or _seconds(path, f"the row '{r['name']}'", r.get("time_limit", limit))
         rows.append(Row(r["name"], str((path.parent / r["config"]).resolve()), list(sets),
-                        parse_seeds(row_seeds), dict(r.get("paper", {}))))
+                        parse_seeds(row_seeds), float(row_limit), dict(r.get("paper", {}))))
     names = [r.name for r in rows]
     if len(set(names)) != len(names):
         raise UserError(f"The suite {path} has two rows with the same name; give every row its own name.")
@@ -148,7 +151,13 @@ def load_suite(name: str, quick: bool = False, seeds=None, time_limit=None, comb
     crossed = parse_combos(combo_specs)
     if overrides:  # part of the combination's name, so that runs with other --set values are not taken as done
         crossed = [(" ".join([*([label] if sets else []), *overrides]), [*sets, *overrides]) for label, sets in crossed]
-    return Suite(str(data.get("name", path.stem)), str(path), rows, crossed, limit)
+    return Suite(str(data.get("name", path.stem)), str(path), rows, crossed, float(forced or limit))
+
+
+def _seconds(path, what, value) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or value <= 0:
+        raise UserError(f"The suite {path}: {what}'s time_limit must be a positive number of seconds, got {value!r}.")
+    return float(value)
 
 
 def mark_skipped(suite: Suite) -> None:
