@@ -420,12 +420,7 @@ def test_a_region_another_object_fills_is_cleared_then_used(tmp_path):
     x, y = 1.2, -0.2  # where b stands: the region is a 10 cm square around it
     data["task"]["regions"] = [{**data["task"]["regions"][0], "name": "spot",
                                 "hull": [[x - 0.05, y - 0.05], [x - 0.05, y + 0.05], [x + 0.05, y + 0.05], [x + 0.05, y - 0.05]]}]
-    path = tmp_path / "filled.json"
-    path.write_text(json.dumps(data))
-    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=120"])
-    assert result.status == "solved", result.reason
-    out = tmp_path / "out"
-    api.write_outputs(result, out)
+    result, out = _solved(tmp_path, data, "filled.json")
     learned = json.loads((out / "result.json").read_text())["learned_facts"]
     assert any(f.startswith("(PDObstructs b ") for f in learned), learned
     assert [(s.action, s.args[0]) for s in result.plan][-1] == ("place", "a")
@@ -522,13 +517,22 @@ def test_a_grasp_that_clears_a_wall_by_less_than_the_planning_padding_is_planned
     that free-space motions keep (PADDING), more than the LINE_PADDING of the straight approach and raise,
     which are checked at the validator's resolution. Before, every grasp counted as "fingers into wall"
     (a false proof: the validator accepts this plan)."""
-    path = tmp_path / "wall.json"
-    path.write_text(json.dumps(wall_scene(gap=0.055)))
+    _solved_and_valid(tmp_path, wall_scene(gap=0.055))
+
+
+def _solved(tmp_path, data, name="scene.json"):
+    """Solve ``data`` (seed 0, 120 s), which must solve: the result and its output folder."""
+    path = tmp_path / name
+    path.write_text(json.dumps(data))
     result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=120"])
     assert result.status == "solved", result.reason
     out = tmp_path / "out"
     api.write_outputs(result, out)
-    assert api.validate(out) == []
+    return result, out
+
+
+def _solved_and_valid(tmp_path, data):
+    assert api.validate(_solved(tmp_path, data)[1]) == []
 
 
 def test_a_put_down_beside_a_wall_closer_than_the_planning_padding_comes_in_along_the_tool(tmp_path):
@@ -539,13 +543,7 @@ def test_a_put_down_beside_a_wall_closer_than_the_planning_padding_comes_in_alon
     data["task"]["goal_holding"] = None
     data["task"]["goal_poses"] = {"a": [1, 0, 0, 0, 1.05, 0.0, 0.751]}
     data["bodies"][3]["point"] = _p(1.05, -0.25, 0.751)  # a starts in the open
-    path = tmp_path / "put.json"
-    path.write_text(json.dumps(data))
-    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=120"])
-    assert result.status == "solved", result.reason
-    out = tmp_path / "out"
-    api.write_outputs(result, out)
-    assert api.validate(out) == []
+    _solved_and_valid(tmp_path, data)
 
 
 def test_tight_checks_see_fixed_obstacles_padded_by_the_line_padding_only(tmp_path):
