@@ -420,12 +420,7 @@ def test_a_region_another_object_fills_is_cleared_then_used(tmp_path):
     x, y = 1.2, -0.2  # where b stands: the region is a 10 cm square around it
     data["task"]["regions"] = [{**data["task"]["regions"][0], "name": "spot",
                                 "hull": [[x - 0.05, y - 0.05], [x - 0.05, y + 0.05], [x + 0.05, y + 0.05], [x + 0.05, y - 0.05]]}]
-    path = tmp_path / "filled.json"
-    path.write_text(json.dumps(data))
-    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=120"])
-    assert result.status == "solved", result.reason
-    out = tmp_path / "out"
-    api.write_outputs(result, out)
+    result, out = _solved(tmp_path, data, "filled.json")
     learned = json.loads((out / "result.json").read_text())["learned_facts"]
     assert any(f.startswith("(PDObstructs b ") for f in learned), learned
     assert [(s.action, s.args[0]) for s in result.plan][-1] == ("place", "a")
@@ -515,6 +510,62 @@ def test_a_box_whose_every_grasp_puts_the_fingers_into_a_wall_is_unsolvable_nami
     result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=60"])
     assert result.status == "unsolvable"
     assert "every grasp of a that fits the gripper puts the PR2's fingers into wall" in result.reason, result.reason
+
+
+def test_a_grasp_that_clears_a_wall_by_less_than_the_planning_padding_is_planned_and_validated(tmp_path):
+    """At a 5.5 cm gap the finger between box a and the wall clears the wall by about 6 mm: less than the 1.5 cm
+    that free-space motions keep (PADDING), more than the LINE_PADDING of the straight approach and raise,
+    which are checked at the validator's resolution. Before, every grasp counted as "fingers into wall"
+    (a false proof: the validator accepts this plan)."""
+    _solved_and_valid(tmp_path, wall_scene(gap=0.055))
+
+
+def _solved(tmp_path, data, name="scene.json"):
+    """Solve ``data`` (seed 0, 120 s), which must solve: the result and its output folder."""
+    path = tmp_path / name
+    path.write_text(json.dumps(data))
+    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=120"])
+    assert result.status == "solved", result.reason
+    out = tmp_path / "out"
+    api.write_outputs(result, out)
+    return result, out
+
+
+def _solved_and_valid(tmp_path, data):
+    assert api.validate(_solved(tmp_path, data)[1]) == []
+
+
+def test_a_put_down_beside_a_wall_closer_than_the_planning_padding_comes_in_along_the_tool(tmp_path):
+    """Box a's goal pose stands 5.5 cm from a wall taller than the hand: the hand at the put-down and LIFT above
+    it is closer to the wall than PADDING, so no transit may end there; the lowering then starts further back
+    along the tool's axis (a straight line, like a pick's approach) and the plan validates."""
+    data = wall_scene(gap=0.055)
+    data["task"]["goal_holding"] = None
+    data["task"]["goal_poses"] = {"a": [1, 0, 0, 0, 1.05, 0.0, 0.751]}
+    data["bodies"][3]["point"] = _p(1.05, -0.25, 0.751)  # a starts in the open
+    _solved_and_valid(tmp_path, data)
+
+
+def test_tight_checks_see_fixed_obstacles_padded_by_the_line_padding_only(tmp_path):
+    """Inside ``geometry.tight()`` the hand at box a's grasp beside the wall is clear; outside it, and
+    after it, the fully padded wall is in the way again (transits keep PADDING)."""
+    from interlayer_manip.grasps import _problem_grasps, grasp_poses
+    from interlayer_manip.state import LINE_PADDING, PADDING
+
+    p = load(tmp_path, wall_scene(gap=0.055))
+    g = p.geometry
+    w = g.initial_world()
+    P = w.objects["a"]
+    _, T = grasp_poses(g, "a", P, 0.0, _problem_grasps(p, "a"), np.random.default_rng(0), n_side=1)[0]
+    hand = w.with_gripper("left", g.opening("a", np.linalg.inv(T) @ P))
+    assert g.line_padding == LINE_PADDING < g.padding == PADDING
+    assert not g.hand_free(hand, "left", T, ("a",))
+    with g.tight():
+        assert g.hand_free(hand, "left", T, ("a",))
+        with g.tight():  # nested: still tight
+            assert g.hand_free(hand, "left", T, ("a",))
+        assert g.hand_free(hand, "left", T, ("a",))
+    assert not g.hand_free(hand, "left", T, ("a",))
 
 
 @needs_shared

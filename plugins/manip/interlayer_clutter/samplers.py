@@ -369,7 +369,7 @@ def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None, z=Non
     annulus), the object's pose ``pose_at(tool heading)`` (None: none there), IK, the lowering and the
     retreat. Returns (base, object pose, tool pose, lowering, retreat, movables on the lowering and
     retreat, movables on the straight joint-space line from the arm's posture) or None."""
-    from interlayer_manip.generators import LIFT, PRE_GRASP, _line, trans
+    from interlayer_manip.generators import LIFT, PRE_GRASP, _line, cleared_lowering, trans
 
     if z is None or not geometry.robot.mobile:
         base = base_near(geometry, x, y, rng, heading=heading)
@@ -385,13 +385,15 @@ def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None, z=Non
     opened = geometry.opening(obj, G)  # only as wide as the grasp needs
     T = P @ np.linalg.inv(G)
     w = replace(world, base=base)
-    put = geometry.ik(w, arm, T, rng, attempts=4)
-    if put is None:
-        return None
-    lower = _line(geometry, w, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, put, rng, splits=LINE_SPLITS)
-    back = _line(geometry, w.with_gripper(arm, opened), arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, put, rng,
-                 gripper=opened, splits=LINE_SPLITS)
-    if lower is None or back is None:
+    with geometry.tight():  # the put-down and its lines keep LINE_PADDING from fixed obstacles, their far ends more (below)
+        put = geometry.ik(w, arm, T, rng, attempts=4)
+        if put is None:
+            return None
+        lower = _line(geometry, w, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, put, rng, splits=LINE_SPLITS)
+        back = _line(geometry, w.with_gripper(arm, opened), arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, put, rng,
+                     gripper=opened, splits=LINE_SPLITS)
+    lower = lower and back and cleared_lowering(geometry, w, arm, obj, opened, lower, back)
+    if not lower:
         return None
     with geometry.stats.timer("collision_checking"):
         hit = movables_on(geometry, w, arm, lower, (), gripper=None)

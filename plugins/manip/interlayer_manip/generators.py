@@ -21,7 +21,7 @@ import numpy as np
 
 from interlayer.refine import Candidate, stable_seed
 
-from .grasps import (_bearing, _line, _problem_grasps, _waypoints, _yaw, check_graspable, check_hand_fits,
+from .grasps import (_bearing, _line, _problem_grasps, _waypoints, _yaw, check_graspable, check_hand_fits, line_ends_clear,
                      grasp_poses)
 from .reachmap import around, open_bearings
 from .scene import REST_GAP, table_top
@@ -183,7 +183,9 @@ def _bases_for_putdown(problem, world, obj, arm, loc, ref, rng, limit, tries):
                 continue
             P, T = _putdown(G, x, y, z, _bearing(base, x, y) + rng.uniform(-0.3, 0.3))
             w = replace(world, base=base)
-            if geometry.ik(w, arm, T, rng, attempts=4) is None:
+            with geometry.tight():  # the put-down's own margin (see place)
+                reached = geometry.ik(w, arm, T, rng, attempts=4) is not None
+            if not reached:
                 continue
             n += 1
             yield Candidate((base,), {ref: list(base), "tloc": (obj, P)},
@@ -191,6 +193,31 @@ def _bases_for_putdown(problem, world, obj, arm, loc, ref, rng, limit, tries):
             if n >= limit:
                 return
             break
+
+
+def cleared_lowering(geometry, world, arm, obj, opened, lower, back):
+    """A put-down's lowering and retreat (IK waypoints from the put-down outwards, found inside
+    ``geometry.tight``) whose far ends clear the fully padded fixed obstacles, transits starting and ending
+    there: the lowering (``obj`` held), extended if need be (``_extended_lowering``), or None."""
+    if not line_ends_clear(geometry, world.with_gripper(arm, opened), arm, (back[-1],), (obj,)):
+        return None
+    return _extended_lowering(geometry, world, arm, lower)
+
+
+def _extended_lowering(geometry, world, arm, lower):
+    """``lower``, or, when the hand LIFT above the spot is too close to a fixed obstacle for a transit to end
+    there (beside a wall taller than the hand), ``lower`` continued back along the tool's approach axis by
+    PRE_GRASP, as a pick's approach comes in; None if that end is not clear either."""
+    if line_ends_clear(geometry, world, arm, (lower[-1],)):
+        return lower
+    q = geometry.sync(world.with_arm(arm, lower[-1]))
+    U = geometry.robot.tool_pose(q, arm)
+    with geometry.tight():
+        back = _line(geometry, world, arm, U, lambda d: U @ trans(-d, 0, 0), PRE_GRASP, lower[-1],
+                     np.random.default_rng(0), splits=2)
+    if back is None or not line_ends_clear(geometry, world, arm, (back[-1],)):
+        return None
+    return [*lower, *back[1:]]
 
 
 def _putdown(G, x, y, z, tool_heading):
@@ -223,17 +250,20 @@ def place(problem, step, world, rng, variants: int = 4):
             spots.append((x, y, z, _bearing(world.base, x, y)))
             if len(spots) > variants:
                 break
+    opened = geometry.opening(obj, G)
     for x, y, z, heading in spots:
         P, T = _putdown(G, x, y, z, heading)
         top = abs(T[2, 0]) > 0.7
-        put = geometry.ik(world, arm, T, rng, attempts=6)
-        if put is None:
-            continue
-        lower = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, put, rng)
         back_at = (lambda d: trans(0, 0, d) @ T) if top else (lambda d: T @ trans(-d, 0, 0))
-        opened = geometry.opening(obj, G)
-        back = _line(geometry, world.with_gripper(arm, opened), arm, T, back_at, PRE_GRASP, put, rng, gripper=opened)
-        if lower is None or back is None:
+        with geometry.tight():  # the put-down and its lines keep LINE_PADDING from fixed obstacles (not yielding here)
+            put = geometry.ik(world, arm, T, rng, attempts=6)
+            if put is not None:
+                lower = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, put, rng)
+                back = _line(geometry, world.with_gripper(arm, opened), arm, T, back_at, PRE_GRASP, put, rng, gripper=opened)
+        if put is None or lower is None or back is None:
+            continue
+        lower = cleared_lowering(geometry, world, arm, obj, opened, lower, back)
+        if lower is None:
             continue
         yield Candidate((tuple(reversed(lower)), tuple(back[1:])), {step.args[4]: T.tolist(), "object_pose": P.tolist()},
                         f"{obj} at {_fmt((x, y))}")

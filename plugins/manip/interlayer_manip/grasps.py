@@ -171,25 +171,26 @@ def check_hand_fits(problem, world, obj):
         return  # check_graspable names the width
     ignore = tuple(geometry.fixed) + tuple(world.objects)
     blockers = set()
-    for T in poses.values():
-        # a base 0.6 m behind the grasp, facing along the approach (a top grasp or a fixed base: where the robot is)
-        yaw = _yaw(T) if abs(T[2, 0]) < 0.7 else _bearing(world.base, P[0, 3], P[1, 3])
-        base = (float(T[0, 3] - 0.6 * math.cos(yaw)), float(T[1, 3] - 0.6 * math.sin(yaw)), yaw)
-        w = replace(world, held={}, base=base if geometry.robot.mobile else world.base)
-        opened = geometry.opening(obj, np.linalg.inv(T) @ P)
-        found = ((a, geometry.ik(w, a, T, rng, ignore=ignore, gripper=opened)) for a in geometry.robot.arms)
-        arm, v = next(((a, v) for a, v in found if v is not None), (None, None))
-        if arm is None:
-            return  # not reached even with nothing in the way: no proof
-        q = geometry.sync(w.with_arm(arm, v).with_gripper(arm, opened))
-        robot = geometry.robot
-        geoms = set(robot.gripper_links(arm))  # the hand's geometries -> their links (collision pairs name links)
-        hand = {robot.model.frames[g.parentFrame].name for g in robot.collision_model.geometryObjects if g.name in geoms}
-        hits = {b for a, b in geometry.cw.collision_pairs(q, movables=False) if a in hand and b in geometry.fixed}
-        if not hits:
-            return
-        blockers |= hits
-    padded = f"; planning keeps {geometry.padding * 100:.1f} cm from fixed obstacles" if geometry.padding else ""
+    with geometry.tight():  # what planning allows at a grasp (the approach and the grasp keep LINE_PADDING)
+        for T in poses.values():
+            # a base 0.6 m behind the grasp, facing along the approach (a top grasp or a fixed base: where the robot is)
+            yaw = _yaw(T) if abs(T[2, 0]) < 0.7 else _bearing(world.base, P[0, 3], P[1, 3])
+            base = (float(T[0, 3] - 0.6 * math.cos(yaw)), float(T[1, 3] - 0.6 * math.sin(yaw)), yaw)
+            w = replace(world, held={}, base=base if geometry.robot.mobile else world.base)
+            opened = geometry.opening(obj, np.linalg.inv(T) @ P)
+            found = ((a, geometry.ik(w, a, T, rng, ignore=ignore, gripper=opened)) for a in geometry.robot.arms)
+            arm, v = next(((a, v) for a, v in found if v is not None), (None, None))
+            if arm is None:
+                return  # not reached even with nothing in the way: no proof
+            q = geometry.sync(w.with_arm(arm, v).with_gripper(arm, opened))
+            robot = geometry.robot
+            geoms = set(robot.gripper_links(arm))  # the hand's geometries -> their links (collision pairs name links)
+            hand = {robot.model.frames[g.parentFrame].name for g in robot.collision_model.geometryObjects if g.name in geoms}
+            hits = {b for a, b in geometry.cw.collision_pairs(q, movables=False) if a in hand and b in geometry.fixed}
+            if not hits:
+                return
+            blockers |= hits
+    padded = f"; planning keeps {geometry.line_padding * 100:.1f} cm from fixed obstacles at a grasp" if geometry.line_padding else ""
     raise Infeasible(f"every grasp of {obj} that fits the gripper puts the {geometry.robot.description.name}'s fingers into {', '.join(sorted(blockers))} "
                      f"where {obj} stands (the gripper opened only {OPEN_CLEARANCE * 100:.0f} cm wider than {obj}{padded}), "
                      f"and the goal needs {obj} moved")
@@ -202,7 +203,24 @@ def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10, hand_check=
     along the approach for side grasps, further up for top grasps), out of shelves and cubbies. None if
     IK fails, the joint path strays, or a piece of it hits a fixed obstacle (the gripper opened as the
     grasp needs). ``attempts``: IK seeds for the grasp. ``hand_check``: first reject, without IK, a grasp
-    or pre-grasp whose hand alone (opened as the grasp needs) touches a fixed obstacle."""
+    or pre-grasp whose hand alone (opened as the grasp needs) touches a fixed obstacle. The grasp and the
+    lines keep LINE_PADDING from fixed obstacles (``geometry.tight``); their far ends, where the transits
+    start and end, the full padding."""
+    with geometry.tight():
+        wps = _tool_lines(geometry, world, arm, T, kind, rng, obj, attempts, hand_check, splits)
+    opened = geometry.opening(obj, np.linalg.inv(T) @ world.objects[obj])
+    if wps is None or not line_ends_clear(geometry, world.with_gripper(arm, opened), arm, (wps[0][0], wps[1][-1]), (obj,)):
+        return None
+    return wps
+
+
+def line_ends_clear(geometry, world, arm, ends, ignore=()) -> bool:
+    """The far ends of straight tool lines found inside ``geometry.tight`` clear the fully padded fixed
+    obstacles: transits start or end there."""
+    return all(geometry.static_path_ok(world, arm, [v], ignore) for v in ends)
+
+
+def _tool_lines(geometry, world, arm, T, kind, rng, obj, attempts, hand_check, splits):
     ignore = (obj,)
     opened = geometry.opening(obj, np.linalg.inv(T) @ world.objects[obj])
     if hand_check:

@@ -147,6 +147,8 @@ def open_bearings(geometry, world, arm, obj, P):
     for b in np.arange(-math.pi, math.pi, BEARING_STEP):
         T = P @ rz(b - math.atan2(P[1, 0], P[0, 0]))
         hand = world.with_gripper(arm, geometry.opening(obj, np.linalg.inv(T) @ P))
-        if geometry.hand_free(hand, arm, T, (obj,)) and geometry.hand_free(hand, arm, T @ trans(-PRE_GRASP, 0, 0), (obj,)):
+        with geometry.tight():  # the grasp's own margin; the pre-grasp, where the transit ends, keeps the full padding
+            at = geometry.hand_free(hand, arm, T, (obj,))
+        if at and geometry.hand_free(hand, arm, T @ trans(-PRE_GRASP, 0, 0), (obj,)):
             out.append(float(b))
     return out

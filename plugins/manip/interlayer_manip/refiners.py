@@ -132,17 +132,20 @@ class Refiners:
 
     def _line(self, w, arm, path, kind, segs, acc):
         """A straight tool line through IK waypoints: with ``planner.cartesian`` = "ik:cartesian" the
-        tool follows it between waypoints; with "interpolate", each piece is straight in joint space."""
+        tool follows it between waypoints; with "interpolate", each piece is straight in joint space.
+        Checked against fixed obstacles padded by LINE_PADDING only (``tight``), at the validator's resolution."""
         from interlayer.motion import MotionPlan
 
         planner = self.cartesian or self.approach
         full = [np.asarray(path[0], float)]
-        for a, b in zip(path, path[1:]):
-            res = planner.plan(self.arm_query(w, arm, a, b, f"{kind}", acc))
-            if not res.ok:
-                return res
-            full += [np.asarray(p, float) for p in res.path[1:]]
-        if not self.fine_ok(w, f"{arm}_arm", full, acc):
+        with self.tight():
+            for a, b in zip(path, path[1:]):
+                res = planner.plan(self.arm_query(w, arm, a, b, f"{kind}", acc))
+                if not res.ok:
+                    return res
+                full += [np.asarray(p, float) for p in res.path[1:]]
+            fine = self.fine_ok(w, f"{arm}_arm", full, acc)
+        if not fine:
             return MotionPlan(False, reason="the straight line touches an obstacle between two collision checks")
         segs.append(self._segment(kind, f"{arm}_arm", full, _holding(w)))
         return MotionPlan(True, tuple(full))
@@ -225,8 +228,10 @@ class Refiners:
         held = {a: v for a, v in w.held.items() if a != arm}
         w = replace(w, objects={**w.objects, obj: P}, held=held, grippers={**w.grippers, arm: opened},
                     tloc={k: v for k, v in w.tloc.items() if k != obj})
-        if self.in_collision(w):
-            return self._stuck(w, "opening the gripper at the put-down pose")
+        with self.tight():  # the end of the lowering line
+            stuck = self.in_collision(w) and self._stuck(w, "opening the gripper at the put-down pose")
+        if stuck:
+            return stuck
         segs.append({"kind": "release", "arm": arm, "object": obj, "pose": P.tolist(), **_width(opened)})
         return self.retreat_and_tuck(motion, w, arm, group, (put, *back), "place", segs, acc)
 

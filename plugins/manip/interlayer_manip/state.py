@@ -14,6 +14,11 @@ RES_ARM = 0.02  # rad between collision checks when planning an arm (the validat
 # between two checks at RES_ARM (the fingertips move up to ~1.6 cm per 0.02 rad) are not real ones;
 # the validator uses the unpadded scene.
 PADDING = 0.015
+# The straight tool lines of grasps and put-downs (approach, raise, lower, retreat) and the grasp and put-down
+# configurations they end at are short and checked at the validator's resolution (Refiners._line): they keep
+# only this far from fixed obstacles (ManipulationGeometry.tight), so that a grasp beside a wall that clears
+# it by a few mm is not shut out by PADDING; the transits and drives that meet them keep PADDING.
+LINE_PADDING = 0.003
 RES_BASE = 0.01  # m / rad between collision checks when planning the base
 # Paths are checked in blocks of FINE_BLOCK points, each block at once by its middle point with a margin
 # where it is clear (interlayer.motion.points_valid); MARGIN_SLACK (m) covers Coal's distance tolerance.

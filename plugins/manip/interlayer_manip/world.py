@@ -15,6 +15,7 @@ raised beside the shoulder) when holding, so that move_base never sweeps an outs
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -27,7 +28,7 @@ from .queries import MotionQueries
 from .reach import Reach
 from .refiners import Refiners
 from .scene import Layout, base_limits
-from .state import OPEN_CLEARANCE, PADDING, RES_ARM, RES_BASE, World, is_open, pose4
+from .state import LINE_PADDING, OPEN_CLEARANCE, PADDING, RES_ARM, RES_BASE, World, is_open, pose4
 from .timing import Output
 
 
@@ -36,24 +37,14 @@ class ManipulationGeometry(MotionQueries, Reach, Refiners, Articulated, Output):
     queries, IK and grasps, the refiners, articulated bodies and the trajectory output in the mixins."""
 
     def __init__(self, layout: Layout, padding: float = PADDING, robot=None):
-        from interlayer_pinocchio import CollisionWorld, describe
+        from interlayer_pinocchio import describe
 
         self.layout = layout
         self.padding = padding
         # the robot: problem.robot (a shipped name or a description's path), unless the domain built it
         self.robot = robot or load_robot(describe(layout.extra.get("robot", "pr2")), layout.extra)
-        self.cw = CollisionWorld(self.robot)
-        for o in layout.fixed + layout.objects:
-            T = pose4(*o.pose)
-            if o.shape == "box":
-                size = o.size
-                if not o.movable and padding:  # fixed obstacles grow by `padding` (supports not upwards:
-                    # objects rest on them and are put down onto them)
-                    up = 0 if o.name in layout.extra.get("supports", ("table",)) else 2 * padding
-                    size = (size[0] + 2 * padding, size[1] + 2 * padding, size[2] + up)
-                self.cw.add_box(o.name, size, T, movable=o.movable)
-            else:
-                self.cw.add_cylinder(o.name, o.size[0], o.size[1], T, movable=o.movable)
+        self.cw = self._collision_world(padding)
+        self._tight = None  # [collision world, synced world, its q] of ``tight``, built when first needed
         self.specs = {o.name: o for o in layout.objects}
         self.fixed = {o.name for o in layout.fixed}
         self.approach = InterpolatingPlanner(name="interpolate")
@@ -63,6 +54,7 @@ class ManipulationGeometry(MotionQueries, Reach, Refiners, Articulated, Output):
         self.bodies = {}  # articulated environment bodies (interlayer_pinocchio.ArticulatedBody): add_body
         self._initial_joints, self._initial_riders = {}, {}
         self._synced = None
+        self._tight_depth = 0  # nesting of ``tight`` blocks
         self._exporting = False  # prepare_export: segments are timed as they are made
         lo, hi = base_limits(layout)
         self.base_space = ConfigSpace("se2", (lo[0], hi[0], -math.pi), (lo[1], hi[1], math.pi), (False, False, True), RES_BASE)
@@ -74,6 +66,54 @@ class ManipulationGeometry(MotionQueries, Reach, Refiners, Articulated, Output):
         for arm in self.robot.arms:
             g = self.robot.group(f"{arm}_arm")
             self.arm_space[arm] = ConfigSpace("vector", tuple(g.lower), tuple(g.upper), (False,) * g.dof, RES_ARM)
+
+    def _collision_world(self, padding):
+        """The layout's bodies in a new CollisionWorld, fixed boxes grown by ``padding``."""
+        from interlayer_pinocchio import CollisionWorld
+
+        cw, layout = CollisionWorld(self.robot), self.layout
+        for o in layout.fixed + layout.objects:
+            T = pose4(*o.pose)
+            if o.shape == "box":
+                size = o.size
+                if not o.movable and padding:  # fixed obstacles grow by `padding` (supports not upwards:
+                    # objects rest on them and are put down onto them)
+                    up = 0 if o.name in layout.extra.get("supports", ("table",)) else 2 * padding
+                    size = (size[0] + 2 * padding, size[1] + 2 * padding, size[2] + up)
+                cw.add_box(o.name, size, T, movable=o.movable)
+            else:
+                cw.add_cylinder(o.name, o.size[0], o.size[1], T, movable=o.movable)
+        return cw
+
+    @property
+    def line_padding(self) -> float:
+        """How far from fixed obstacles the checks inside ``tight`` keep."""
+        return self.padding if self.bodies or self.padding <= LINE_PADDING else LINE_PADDING
+
+    @contextmanager
+    def tight(self):
+        """Inside, every check (IK, lines, hand, states) sees the fixed obstacles padded by LINE_PADDING,
+        not ``padding``: for the straight tool lines of grasps and put-downs and the configurations they
+        end at (see state.py). A second collision world, synced to the world checked like the first; none
+        when articulated bodies are added (their links keep the full padding). Do not yield inside it."""
+        if self.line_padding == self.padding or self._tight_depth:
+            self._tight_depth += 1
+            try:
+                yield
+            finally:
+                self._tight_depth -= 1
+            return
+        if self._tight is None:
+            self._tight = [self._collision_world(LINE_PADDING), None, None]
+        outer = [self.cw, self._synced, getattr(self, "_synced_q", None)]
+        self.cw, self._synced, self._synced_q = self._tight
+        self._tight_depth = 1
+        try:
+            yield
+        finally:
+            self._tight_depth = 0
+            self._tight[:] = self.cw, self._synced, self._synced_q
+            self.cw, self._synced, self._synced_q = outer
 
     def scene_issues(self) -> list:
         """Interpenetrating, floating and buried objects at their initial poses (see sanity.py)."""

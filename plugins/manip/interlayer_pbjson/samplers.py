@@ -274,7 +274,9 @@ def _fits(problem, world, obj, arm, T, grasp) -> bool:
     geometry = problem.geometry
     hand = world.with_gripper(arm, geometry.opening(obj, grasp))
     back = trans(0, 0, PRE_GRASP) @ T if _kind(T) == "top" else T @ trans(-PRE_GRASP, 0, 0)
-    if not (geometry.hand_free(hand, arm, T, (obj,)) and geometry.hand_free(hand, arm, back, (obj,))):
+    with geometry.tight():  # the put-down's own margin; the retreat's far end keeps the full padding
+        at = geometry.hand_free(hand, arm, T, (obj,))
+    if not (at and geometry.hand_free(hand, arm, back, (obj,))):
         return False
     return _kind(T) == "top" or not geometry.robot.mobile or any(
         _base_free(geometry, world, base_of(T[0, 3], T[1, 3], o)) for o in standing(geometry, arm, *T[:3, 3], _yaw(T)))
