@@ -831,3 +831,40 @@ def test_a_pick_is_ranked_by_what_its_raise_drags_the_held_object_through(tmp_pa
         dragged += bool(raised)
         assert hits >= len(raised)
     assert dragged  # the case the ranking must see
+
+
+def test_a_block_at_its_goal_pose_that_blocks_a_pick_blocks_it_again_when_put_back(tmp_path):
+    """Issue 20 (rearrangement_8): k1, at its goal pose, blocks the approach of k0's pick. The task
+    planner learned (Obstructs k1 gp), which picking k1 forgets, and so put k1 back at its goal before
+    picking k0: the same failure, replan after replan. An obstruction by an object at its goal pose is now
+    also learned as (GoalObstructs k1 gp), which outlives the pick of k1: while k1 stands at its goal, k0's
+    pick waits. s (no goal pose) is named only by Obstructs.
+    Mutations: _goal_blockers naming no object at its goal (no GoalObstructs learned); the pick's
+    precondition on GoalObstructs dropped (k0's pick applicable with k1 back at its goal)."""
+    from interlayer.abstraction import abstract
+    from interlayer.builtin import translate_by_templates
+    from interlayer.domain import GroundStep
+    from interlayer.refine import Failure, StepOutcome
+
+    p = rows_of_blocks(tmp_path)
+    g, m = p.geometry, abstract(p)
+
+    def pick(o, arm, other):
+        return GroundStep("pick", (o, arm, other, f"bpfg_{o}_{arm}", f"gpfg_{o}_{arm}", f"gpfg_{o}_{other}"))
+
+    failed = g._goal_blockers(g.initial_world(), StepOutcome(False, failure=Failure(
+        "obstruction", ("k1", "s"), "pick approach: blocked by k1, s", also=lambda: {"?blocker2": ("k1",)})))
+    facts = translate_by_templates(failed.failure, pick("k0", "left", "right"), m)
+    assert {f for f in facts if f[0] == "GoalObstructs"} == {("GoalObstructs", "k1", "gpfg_k0_left"),
+                                                              ("GoalObstructs", "k1", "gpfg_k0_right")}
+    assert ("Obstructs", "s", "gpfg_k0_left") in facts
+    state = m.init | facts
+    assert not m.applicable(state, pick("k0", "left", "right"))
+    moved = m.progress(state, pick("k1", "right", "left"))
+    assert not any(f[0] == "Obstructs" and f[1] == "k1" for f in moved)  # the paper's fact: forgotten with the pick
+    back = m.progress(moved, GroundStep("place_at_goal", ("k1", "right", "bpfgp_k1_right", "gpfgp_k1_right")))
+    cleared = back - {("Obstructs", "s", "gpfg_k0_left")}  # s moved away meanwhile
+    assert not m.applicable(cleared, pick("k0", "left", "right"))  # k1 is back at its goal: still in the way
+    assert m.applicable(m.progress(cleared, pick("k1", "right", "left")), pick("k0", "left", "right"))
+    # picking k0 forgets what blocked its grasps where it stood
+    assert not any(f[0] == "GoalObstructs" for f in m.progress(cleared - {("AtGoalPose", "k1")}, pick("k0", "left", "right")))
