@@ -868,3 +868,33 @@ def test_a_block_at_its_goal_pose_that_blocks_a_pick_blocks_it_again_when_put_ba
     assert m.applicable(m.progress(cleared, pick("k1", "right", "left")), pick("k0", "left", "right"))
     # picking k0 forgets what blocked its grasps where it stood
     assert not any(f[0] == "GoalObstructs" for f in m.progress(cleared - {("AtGoalPose", "k1")}, pick("k0", "left", "right")))
+
+
+def test_a_box_lifted_from_a_hair_beside_another_does_not_touch_it(tmp_path):
+    """Issue 20 (move_several_8): two 7 cm boxes 20 cm tall stand 0.8 mm apart (0.3 mm at b's corner, b turned
+    0.9 degrees). The lift after a grasp was one IK step of 5 cm, and the joint-space line between its ends
+    strays 0.5 mm sideways: every raise of a touched b, and every raise of b touched a, so neither could be
+    picked first. With 1 cm steps a grasp from a's far side lifts it clear of b.
+    Mutation: the lift in one LINE_STEP again (LIFT_STEP = 0.05): b is on the raise of every grasp."""
+    from interlayer.refine import stable_seed
+    from interlayer_clutter.samplers import _carrying
+    from interlayer_pbjson.samplers import PBSampler
+
+    data = scene(goal_holding="a")
+    box = [_box((0.035, 0.035, 0.1), (0, 0, 0.1))]
+    data["bodies"] = [_body("table", (0.0, 0.0, 0.0), [_box((0.255, 0.255, 0.35), (0, 0, 0.35))]),
+                      _body("a", (0.0, 0.0, 0.701), box),
+                      _body("b", (0.0333, -0.0708, 0.701), box, quat={"w": 0.99997, "x": 0.0, "y": 0.0, "z": -0.00804})]
+    data["robots"][0]["point"] = _p(-1.0, 0.0, 0.0)
+    data["task"].update(object_names=["a", "b"], table_names=["table"], sink_names=[], stove_names=[], regions=[])
+    p = load(tmp_path, data)
+    g, w = p.geometry, p.geometry.initial_world()
+    sampler = PBSampler(stable_seed(0, 0, PBSampler.__qualname__))
+    raised = []
+    for base, _, T, wps, _ in sampler.grasp_candidates(p, w, "a", "left"):
+        at = replace(w, base=base)
+        if "b" in g._movables_on_line(at.with_gripper("left", g.grasp_opening(at, "left", "a", wps[0][-1])), "left",
+                                      wps[0], [0.0]):
+            continue  # the hand passes b on the way in (a finger between them): no raise can help
+        raised.append(g._movables_on_line(_carrying(at, "left", "a", T), "left", (wps[0][-1], *wps[1]), [0.0]))
+    assert raised and all("b" not in hit for hit in raised), raised
