@@ -898,3 +898,34 @@ def test_a_box_lifted_from_a_hair_beside_another_does_not_touch_it(tmp_path):
             continue  # the hand passes b on the way in (a finger between them): no raise can help
         raised.append(g._movables_on_line(_carrying(at, "left", "a", T), "left", (wps[0][-1], *wps[1]), [0.0]))
     assert raised and all("b" not in hit for hit in raised), raised
+
+
+def test_a_grasp_blocked_by_an_object_that_waits_for_this_one_ranks_last(tmp_path):
+    """Issue 20 (rearrangement_14): block1-5's best grasps had block1-1 in the way, and block1-1's best ones
+    block1-5: the task planner found no order (each waits for the other), dead end after dead end, then a
+    reset that threw 36 s of refinement away. A pick now ranks last the grasps blocked by an object whose best
+    grasps (each arm's, ranked in this epoch where both stand now) it is itself in the way of. Here s's best
+    grasps have k2 and k5 in the way (recorded as ranked); once k2's best grasps are known to have s in the
+    way, s's grasps past k0, k1, k3, k4 (more objects, but none waiting for s) come first.
+    Mutations: the ranking without its first key (the waiting objects): k2 stays first in the way; the best
+    grasp's blockers not recorded: the first assertion fails."""
+    from interlayer.refine import stable_seed
+    from interlayer_clutter.samplers import _pose_key
+    from interlayer_pbjson.samplers import PBSampler
+
+    p = rows_of_blocks(tmp_path)
+    w = p.geometry.initial_world()
+    sampler = PBSampler(stable_seed(0, 0, PBSampler.__qualname__))
+
+    def in_the_way(obj):
+        ranked = sampler.ranked_grasps(p, w, obj, "left")
+        hits = dict(zip(map(id, sampler.rankings[(obj, "left", id(w))][1]), sampler.hit_sets[(obj, "left", id(w))][1]))
+        return [set(hits[id(c)]) for c in ranked]
+
+    assert in_the_way("s")[0] == {"k2", "k5"}
+    here = {o: _pose_key(Q) for o, Q in w.objects.items()}
+    assert {o for o, (pose, hit) in sampler.best_hits[("s", "left")][1].items() if hit and pose == here[o]} == {"k2", "k5"}
+    for arm in ("left", "right"):  # k2's best grasps, as if s stood in their way
+        sampler.best_hits[("k2", arm)] = (here["k2"], {"s": (here["s"], True)})
+    ranked = in_the_way("s")
+    assert ranked[0] == {"k0", "k1", "k3", "k4"} and "k2" in ranked[-1]
