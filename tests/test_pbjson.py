@@ -882,3 +882,101 @@ def test_a_pick_is_ranked_by_what_its_raise_drags_the_held_object_through(tmp_pa
         dragged += bool(raised)
         assert hits >= len(raised)
     assert dragged  # the case the ranking must see
+
+
+def test_a_block_at_its_goal_pose_that_blocks_a_pick_blocks_it_again_when_put_back(tmp_path):
+    """Issue 20 (rearrangement_8): k1, at its goal pose, blocks the approach of k0's pick. The task
+    planner learned (Obstructs k1 gp), which picking k1 forgets, and so put k1 back at its goal before
+    picking k0: the same failure, replan after replan. An obstruction by an object at its goal pose is now
+    also learned as (GoalObstructs k1 gp), which outlives the pick of k1: while k1 stands at its goal, k0's
+    pick waits. s (no goal pose) is named only by Obstructs.
+    Mutations: _goal_blockers naming no object at its goal (no GoalObstructs learned); the pick's
+    precondition on GoalObstructs dropped (k0's pick applicable with k1 back at its goal)."""
+    from interlayer.abstraction import abstract
+    from interlayer.builtin import translate_by_templates
+    from interlayer.domain import GroundStep
+    from interlayer.refine import Failure, StepOutcome
+
+    p = rows_of_blocks(tmp_path)
+    g, m = p.geometry, abstract(p)
+
+    def pick(o, arm, other):
+        return GroundStep("pick", (o, arm, other, f"bpfg_{o}_{arm}", f"gpfg_{o}_{arm}", f"gpfg_{o}_{other}"))
+
+    failed = g._goal_blockers(g.initial_world(), StepOutcome(False, failure=Failure(
+        "obstruction", ("k1", "s"), "pick approach: blocked by k1, s", also=lambda: {"?blocker2": ("k1",)})))
+    facts = translate_by_templates(failed.failure, pick("k0", "left", "right"), m)
+    assert {f for f in facts if f[0] == "GoalObstructs"} == {("GoalObstructs", "k1", "gpfg_k0_left"),
+                                                              ("GoalObstructs", "k1", "gpfg_k0_right")}
+    assert ("Obstructs", "s", "gpfg_k0_left") in facts
+    state = m.init | facts
+    assert not m.applicable(state, pick("k0", "left", "right"))
+    moved = m.progress(state, pick("k1", "right", "left"))
+    assert not any(f[0] == "Obstructs" and f[1] == "k1" for f in moved)  # the paper's fact: forgotten with the pick
+    back = m.progress(moved, GroundStep("place_at_goal", ("k1", "right", "bpfgp_k1_right", "gpfgp_k1_right")))
+    cleared = back - {("Obstructs", "s", "gpfg_k0_left")}  # s moved away meanwhile
+    assert not m.applicable(cleared, pick("k0", "left", "right"))  # k1 is back at its goal: still in the way
+    assert m.applicable(m.progress(cleared, pick("k1", "right", "left")), pick("k0", "left", "right"))
+    # picking k0 forgets what blocked its grasps where it stood
+    assert not any(f[0] == "GoalObstructs" for f in m.progress(cleared - {("AtGoalPose", "k1")}, pick("k0", "left", "right")))
+
+
+def test_a_box_lifted_from_a_hair_beside_another_does_not_touch_it(tmp_path):
+    """Issue 20 (move_several_8): two 7 cm boxes 20 cm tall stand 0.8 mm apart (0.3 mm at b's corner, b turned
+    0.9 degrees). The lift after a grasp was one IK step of 5 cm, and the joint-space line between its ends
+    strays 0.5 mm sideways: every raise of a touched b, and every raise of b touched a, so neither could be
+    picked first. With 1 cm steps a grasp from a's far side lifts it clear of b.
+    Mutation: the lift in one LINE_STEP again (LIFT_STEP = 0.05): b is on the raise of every grasp."""
+    from interlayer.refine import stable_seed
+    from interlayer_clutter.samplers import _carrying
+    from interlayer_pbjson.samplers import PBSampler
+
+    data = scene(goal_holding="a")
+    box = [_box((0.035, 0.035, 0.1), (0, 0, 0.1))]
+    data["bodies"] = [_body("table", (0.0, 0.0, 0.0), [_box((0.255, 0.255, 0.35), (0, 0, 0.35))]),
+                      _body("a", (0.0, 0.0, 0.701), box),
+                      _body("b", (0.0333, -0.0708, 0.701), box, quat={"w": 0.99997, "x": 0.0, "y": 0.0, "z": -0.00804})]
+    data["robots"][0]["point"] = _p(-1.0, 0.0, 0.0)
+    data["task"].update(object_names=["a", "b"], table_names=["table"], sink_names=[], stove_names=[], regions=[])
+    p = load(tmp_path, data)
+    g, w = p.geometry, p.geometry.initial_world()
+    sampler = PBSampler(stable_seed(0, 0, PBSampler.__qualname__))
+    raised = []
+    for base, _, T, wps, _ in sampler.grasp_candidates(p, w, "a", "left"):
+        at = replace(w, base=base)
+        if "b" in g._movables_on_line(at.with_gripper("left", g.grasp_opening(at, "left", "a", wps[0][-1])), "left",
+                                      wps[0], [0.0]):
+            continue  # the hand passes b on the way in (a finger between them): no raise can help
+        raised.append(g._movables_on_line(_carrying(at, "left", "a", T), "left", (wps[0][-1], *wps[1]), [0.0]))
+    assert raised and all("b" not in hit for hit in raised), raised
+
+
+def test_a_grasp_blocked_by_an_object_that_waits_for_this_one_ranks_last(tmp_path):
+    """Issue 20 (rearrangement_14): block1-5's best grasps had block1-1 in the way, and block1-1's best ones
+    block1-5: the task planner found no order (each waits for the other), dead end after dead end, then a
+    reset that threw 36 s of refinement away. A pick now ranks last the grasps blocked by an object whose best
+    grasps (each arm's, ranked in this epoch where both stand now) it is itself in the way of. Here s's best
+    grasps have k2 and k5 in the way (recorded as ranked); once k2's best grasps are known to have s in the
+    way, s's grasps past k0, k1, k3, k4 (more objects, but none waiting for s) come first.
+    Mutations: the ranking without its first key (the waiting objects): k2 stays first in the way; the best
+    grasp's blockers not recorded: the first assertion fails."""
+    from interlayer.refine import stable_seed
+    from interlayer_clutter.samplers import _pose_key
+    from interlayer_pbjson.samplers import PBSampler
+
+    p = rows_of_blocks(tmp_path)
+    w = p.geometry.initial_world()
+    sampler = PBSampler(stable_seed(0, 0, PBSampler.__qualname__))
+
+    def in_the_way(obj):
+        ranked = sampler.ranked_grasps(p, w, obj, "left")
+        hits = dict(zip(map(id, sampler.rankings[(obj, "left", id(w))][1]), sampler.hit_sets[(obj, "left", id(w))][1]))
+        return [set(hits[id(c)]) for c in ranked]
+
+    assert in_the_way("s")[0] == {"k2", "k5"}
+    here = {o: _pose_key(Q) for o, Q in w.objects.items()}
+    assert {o for o, (pose, hit) in sampler.best_hits[("s", "left")][1].items() if hit and pose == here[o]} == {"k2", "k5"}
+    for arm in ("left", "right"):  # k2's best grasps, as if s stood in their way
+        sampler.best_hits[("k2", arm)] = (here["k2"], {"s": (here["s"], True)})
+    ranked = in_the_way("s")
+    assert ranked[0] == {"k0", "k1", "k3", "k4"} and "k2" in ranked[-1]

@@ -131,6 +131,7 @@ class ClutterSampler(EpochState):
         # answers already given (the partial pass repeats the error-free pass's questions), keyed by the
         # world's id and holding the world itself (so that the id is not reused while the entry lives)
         self.rankings: dict = {}  # (obj, arm, id(world)) -> (world, ranked grasps)
+        self.hit_sets: dict = {}  # (obj, arm, id(world)) -> (world, the objects on each ranked grasp's approach and raise)
         self.lookaheads: dict = {}  # (obj, arm, id(world)) -> (world, the other arm's question, see _other_arm)
         self.putdowns: dict = {}  # (obj, arm, id(world), random state, corridors) -> (world, put-down candidates)
 
@@ -271,10 +272,12 @@ class ClutterSampler(EpochState):
                 # a rough guess at the transit's sweep: the straight joint-space line to the pre-grasp
                 sweep = movables_on(geometry, w, arm, coarse_line(w.arms[arm], wps[0][0]), (obj,), gripper=None)
             drive = math.hypot(base[0] - world.base[0], base[1] - world.base[1]) + 0.3 * abs(wrap(base[2] - world.base[2]))
-            out.append(((len(hit), len(sweep)), drive, base, kind, T, wps, xy))
-        out.sort(key=lambda f: (f[0], f[1]))
+            out.append((((len(hit), len(sweep)), drive, base, kind, T, wps, xy), frozenset(hit)))
+        out.sort(key=lambda f: (f[0][0], f[0][1]))
+        hits, out = [h for _, h in out], [f for f, _ in out]
         if out:  # none found: the next call searches with other samples (see grasp_candidates)
             self.rankings[key] = (world, out)
+            self.hit_sets[key] = (world, hits)
         return out
 
     def spot_score(self, geometry, world, target, x, y, corridors=()):

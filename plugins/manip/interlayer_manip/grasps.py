@@ -13,6 +13,10 @@ from interlayer.refine import Infeasible
 from .state import LIFT, OPEN_CLEARANCE, PRE_GRASP, pose4, rz, trans, wrap
 
 LINE_STEP = 0.05  # m between IK waypoints of straight-line approaches
+# m between those of the lift after a grasp: the joint-space line between two IK solutions 5 cm apart strays
+# 0.5 mm sideways, and a box lifted from 0.3 mm beside another touched it (move_several_8: blue and red1, each
+# blocked the other's every raise); the stray shrinks with the square of the step
+LIFT_STEP = 0.01
 GRASP_CLEARANCE = 0.001  # the gripper must open at least this much wider than the object
 GRASP_DEPTH = 0.04  # m: the deepest a side grasp reaches into an object (tool point to its near face)
 # rad: side grasps of a cylinder face up to this far off the heading asked for. A mobile base varies the
@@ -234,7 +238,7 @@ def _tool_lines(geometry, world, arm, T, kind, rng, obj, attempts, hand_check, s
     line = _line(geometry, world, arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, grasp, rng, ignore, opened, splits)
     if line is None or not geometry.static_path_ok(world.with_gripper(arm, opened), arm, line, ignore):
         return None
-    up = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, grasp, rng, ignore, opened, splits)
+    up = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, grasp, rng, ignore, opened, splits, LIFT_STEP)
     if up is None:
         return None
     U = trans(0, 0, LIFT) @ T
@@ -248,10 +252,10 @@ def _tool_lines(geometry, world, arm, T, kind, rng, obj, attempts, hand_check, s
     return tuple(reversed(line)), tuple(lift[1:])
 
 
-def _line(geometry, world, arm, T, at, length, start, rng, ignore=(), gripper=None, splits=0):
-    """IK solutions for at(0) = T, at(STEP), ..., at(length), each seeded by the previous one (with
+def _line(geometry, world, arm, T, at, length, start, rng, ignore=(), gripper=None, splits=0, step=LINE_STEP):
+    """IK solutions for at(0) = T, at(step), ..., at(length), each seeded by the previous one (with
     ``splits``, a step that moves the joints too far is split that many times, see _line_step)."""
-    n = max(1, math.ceil(length / LINE_STEP - 1e-9))
+    n = max(1, math.ceil(length / step - 1e-9))
     out = [start]
     for k in range(1, n + 1):
         steps = _line_step(geometry, world, arm, at, length * (k - 1) / n, length * k / n, out[-1], rng, ignore, gripper,

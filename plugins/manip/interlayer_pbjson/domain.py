@@ -25,6 +25,11 @@ obstructions are learned with two arguments. What it adds:
   fixed obstacle, and a grasp of another side or kind is clear there). Picking ?o again deletes it, so
   the task planner puts ?o down and takes it again (regrasp); the pick generator then offers first the
   grasps that fit at the goal.
+* ``(GoalObstructs ?b ?gp)`` / ``(GoalPDObstructs ?b ?pd)``: ?b, standing at its goal pose, was in the way
+  of the grasp ?gp (of the put-down at the goal ?pd), learned beside Obstructs / PDObstructs. Picking ?b
+  does not forget it: while ?b stands at its goal (AtGoalPose), that pick (put-down) waits, so the task
+  planner moves ?o before it puts ?b back (rearrangement: ?b went back to its goal, into the way again,
+  replan after replan). Picking ?o forgets its GoalObstructs (its grasps change with its pose).
 * kitchen semantics as conditional effects: placing on a sink cleans, placing a clean object on a
   stove cooks.
 * ``go_home`` drives the base back to its start and the empty arms to their start configuration
@@ -101,9 +106,14 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
                       "IsGPFGP": ("pdpose", "obj", "arm")})
         skolems += [Skolem("bpfgp", (it, "arm"), "bpose", "IsBPFGP", "a base pose from which arm can put obj at its goal pose"),
                     Skolem("gpfgp", (it, "arm"), "pdpose", "IsGPFGP", "a gripper pose putting obj at its goal pose")]
-        preds.update({"Occupies": ("obj", "obj"), "BadGrasp": ("obj", "pdpose")})
+        preds.update({"Occupies": ("obj", "obj"), "BadGrasp": ("obj", "pdpose"), "GoalObstructs": ("obj", "gpose"),
+                      "GoalPDObstructs": ("obj", "pdpose")})
+        # an obstruction by an object at its goal pose comes back when that object is put there again: while
+        # it stands there, the pick (the put-down at the goal) it blocked waits
+        pick_pre.append("(forall (?b - obj) (or (not (GoalObstructs ?b ?gp)) (not (AtGoalPose ?b))))")
         pick_eff += ["(not (AtGoalPose ?o))", "(forall (?x - obj) (not (Occupies ?o ?x)))",
-                     "(forall (?p - pdpose) (not (BadGrasp ?o ?p)))"]  # a new grasp
+                     "(forall (?p - pdpose) (not (BadGrasp ?o ?p)))",  # a new grasp
+                     "(forall (?b - obj) (and (not (GoalObstructs ?b ?gp)) (not (GoalObstructs ?b ?gp2))))"]
     actions = [
         ActionSpec(
             name="pick",
@@ -112,7 +122,9 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
             parameters=(("?o", it), ("?arm", "arm"), ("?arm2", "arm"), ("?bp", "bpose"), ("?gp", "gpose"),
                         ("?gp2", "gpose")),
             precondition=f"(and {' '.join(pick_pre)})", effect=f"(and {' '.join(pick_eff)})",
-            learn={"obstruction": ("(Obstructs ?blocker ?gp)", "(Obstructs ?blocker2 ?gp2)"),
+            learn={"obstruction": ("(Obstructs ?blocker ?gp)", "(Obstructs ?blocker2 ?gp2)",
+                                   *(("(GoalObstructs ?blocker_at_goal ?gp)", "(GoalObstructs ?blocker2_at_goal ?gp2)")
+                                     if goal_poses else ())),
                    NO_CANDIDATES: ("(NoGrasp ?gp)",), **drive_learn}, pose_generator="pbjson:pick"),
         ActionSpec(
             name="place",
@@ -127,10 +139,12 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
             precondition=f"""(and (Holding ?o ?arm) (HasGoalPose ?o) (IsBPFGP ?bp ?o ?arm) (IsGPFGP ?pd ?o ?arm)
                                   (forall (?b - obj) (and (not (PDObstructs ?b ?pd)) (not (Occupies ?b ?o))))
                                   (not (BadGrasp ?o ?pd))
+                                  (forall (?b - obj) (or (not (GoalPDObstructs ?b ?pd)) (not (AtGoalPose ?b))))
                                   {f'(not ({done}))' if done else ''}
                                   {'(forall (?f - obj) (not (BaseObstructs ?f ?bp)))' if floor else ''})""",
             effect="(and (not (Holding ?o ?arm)) (HandEmpty ?arm) (Resting ?o) (AtGoalPose ?o))",
-            learn={"obstruction": ("(PDObstructs ?blocker ?pd)",), HELD_GRASP: ("(BadGrasp ?o ?pd)",), **drive_learn},
+            learn={"obstruction": ("(PDObstructs ?blocker ?pd)", "(GoalPDObstructs ?blocker_at_goal ?pd)"),
+                   HELD_GRASP: ("(BadGrasp ?o ?pd)",), **drive_learn},
             pose_generator="pbjson:place"))
     if done:
         clear = " (forall (?f - obj) (FinalClear ?f))" if floor else ""
@@ -162,7 +176,7 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
         continuous_types=("bpose", "gpose", "pdpose"),
         predicates=preds,
         skolems=tuple(skolems),
-        geometric=("Obstructs", "PDObstructs", "NoGrasp", *(("BadGrasp",) if goal_poses else ()),
+        geometric=("Obstructs", "PDObstructs", "NoGrasp", *(("BadGrasp", "GoalObstructs", "GoalPDObstructs") if goal_poses else ()),
                    *(("BaseObstructs",) if floor else ())),
         actions=tuple(actions),
     )

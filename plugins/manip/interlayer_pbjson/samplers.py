@@ -19,7 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 from interlayer.refine import Candidate
-from interlayer_clutter.samplers import ClutterSampler, fmt, in_corridors, putdown_motion
+from interlayer_clutter.samplers import ClutterSampler, _pose_key, fmt, in_corridors, putdown_motion
 from interlayer_manip.scene import REST_GAP
 from interlayer_manip.state import PRE_GRASP, RES_BASE, pose4, trans, wrap
 
@@ -36,6 +36,9 @@ class PBSampler(ClutterSampler):
         super().__init__(seed)
         self.wanted: dict = {}  # object -> grasps (tool_T_object) that fit at its goal pose, after a regrasp was learned
         self.fitting: dict = {}  # object -> grasps that fit at its goal pose (goal_grasps)
+        # (obj, arm) -> (obj's pose key, {other object: (its pose key, whether it was in the way of obj's best grasp)}),
+        # from the last ranking of obj's grasps in which the other object stood there
+        self.best_hits: dict = {}
 
     def __call__(self, problem, step, world, rng):
         if step.action == "pick":
@@ -156,15 +159,37 @@ class PBSampler(ClutterSampler):
         return self.fitting[obj]
 
     def ranked_grasps(self, problem, world, obj, arm):
-        """Clutter's ranking, with the candidates whose grasp fits at obj's goal pose (``order_grasps``) first
-        among those with as many objects in the way."""
+        """Clutter's ranking, with the candidates blocked by an object that waits for obj (``_waiting_for``)
+        last, and those whose grasp fits at obj's goal pose (``order_grasps``) first among those with as many
+        objects in the way."""
         ranked = super().ranked_grasps(problem, world, obj, arm)
-        fits = self._goal_fits(problem, obj)
-        if not fits:
+        if not ranked:
             return ranked
+        hits = dict(zip(map(id, ranked), self.hit_sets[(obj, arm, id(world))][1]))
+        # a grasp of obj that an object waiting for obj blocks waits for a pick that waits for obj (rearrangement_14:
+        # block1-5 and block1-1), and the task planner finds no order; grasps with other objects in the way, which it
+        # can clear, come first
+        mutual = self._waiting_for(world, obj)
+        fits = self._goal_fits(problem, obj)
         P = world.objects[obj]
-        return sorted(ranked, key=lambda c: (c[0], not any(_same_grasp(problem.geometry, obj, np.linalg.inv(c[4]) @ P, F)
-                                                           for F in fits), c[1]))
+        ranked = sorted(ranked, key=lambda c: (bool(hits[id(c)] & mutual), c[0], bool(fits) and not any(
+            _same_grasp(problem.geometry, obj, np.linalg.inv(c[4]) @ P, F) for F in fits), c[1]))
+        pose, seen = self.best_hits.get((obj, arm), (None, {}))
+        best = hits[id(ranked[0])]
+        seen = {**(seen if pose == _pose_key(P) else {}),
+                **{o: (_pose_key(Q), o in best) for o, Q in world.objects.items() if o != obj}}
+        self.best_hits[(obj, arm)] = (_pose_key(P), seen)
+        return ranked
+
+    def _waiting_for(self, world, obj) -> set:
+        """The objects whose best grasp for every arm, ranked in this epoch where they and obj stand now, has obj
+        in the way."""
+        out: dict = {}
+        here = _pose_key(world.objects[obj])
+        for (b, _), (pose, seen) in self.best_hits.items():
+            if b != obj and b in world.objects and _pose_key(world.objects[b]) == pose:
+                out[b] = out.get(b, True) and seen.get(obj) == (here, True)
+        return {b for b, waits in out.items() if waits}
 
     def _goal_fits(self, problem, obj):
         return self.wanted.get(obj) or (self.goal_grasps(problem, obj)

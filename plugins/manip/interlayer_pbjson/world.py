@@ -181,6 +181,29 @@ class PBGeometry(ManipulationGeometry):
         return None
 
     def refine_step(self, step, world, candidate, motion) -> StepOutcome:
+        return self._goal_blockers(world, self._refine_step(step, world, candidate, motion))
+
+    def _goal_blockers(self, world, out) -> StepOutcome:
+        """An obstruction naming objects that stand at their goal poses also names them as ``?blocker_at_goal``
+        (``?blocker2_at_goal`` among the other arm's blockers): the task planner learns (GoalObstructs b gp),
+        which outlives picking b, so that it does not put b back at its goal before the pick it blocked
+        (rearrangement: without it, b went back to its goal and blocked that pick again, replan after replan)."""
+        f = out.failure
+        goals = self.layout.extra.get("goal_centres")
+        if out.ok or f is None or f.kind != "obstruction" or not goals:
+            return out
+
+        def at_goal(objs):
+            return tuple(o for o in objs if o in goals and o in world.objects and self.at_goal_pose(o, world.objects[o]))
+
+        def also():
+            found = dict(f.also_objects())
+            more = {"?blocker_at_goal": at_goal(f.objects), "?blocker2_at_goal": at_goal(found.get("?blocker2", ()))}
+            return {**found, **{k: v for k, v in more.items() if v}}
+
+        return replace(out, failure=replace(f, also=also))
+
+    def _refine_step(self, step, world, candidate, motion) -> StepOutcome:
         if HELD_GRASP in candidate.values:  # the put-down generator's verdict: only another grasp fits the goal pose
             return StepOutcome(False, failure=Failure(HELD_GRASP, (), candidate.values[HELD_GRASP]))
         acc = [0.0]
