@@ -103,3 +103,38 @@ def test_a_pick_of_an_object_bound_for_a_goal_pose_ranks_the_grasps_that_fit_the
         flags = [(c[0], not any(_same_grasp(p.geometry, "a", np.linalg.inv(c[4]) @ P, F) for F in fits)) for c in ranked]
         assert False in [f for _, f in flags] and True in [f for _, f in flags], flags  # both kinds offered
         assert flags == sorted(flags, key=lambda f: f), flags
+
+
+def test_a_grasp_put_down_from_a_base_off_straight_behind_the_tool_asks_for_no_regrasp(tmp_path):
+    """a's goal is 0.1 m in from the front edge of a long counter. Held with the tool along the counter, the
+    base straight behind the tool would stand under the counter, yet the put-down's own search stands it
+    off that line (base_near: within SECTOR of straight behind) and finds one; so the held grasp fits there:
+    no regrasp is asked, and goal_grasps counts that grasp as fitting (sink_stove_4_30: the pick ranked a
+    grasp that put down only from 1.06 m, over two objects, before one that puts down from 0.9 m clear).
+    Mutation: _fits asks standing() for the bases straight behind the tool alone (spread 0): a regrasp is
+    asked."""
+    from interlayer.domain import GroundStep
+    from interlayer.refine import stable_seed
+    from interlayer_manip.grasps import grasp_poses
+    from interlayer_pbjson.samplers import PBSampler, _same_grasp, goal_variants
+
+    data = deep_table(goal_poses={"a": "initial"})
+    data["bodies"][0] = _body("counter", (2.0, 0.0, 0.385), [_box((0.305, 2.0, 0.385))])  # 4 m long
+    data["bodies"][1] = _body("back", (2.5, 0.0, 0.0), [_box((0.01, 4.0, 0.2), (0.0, 0.0, 0.2))])
+    data["bodies"][2]["point"] = {"x": 1.80, "y": 0.0, "z": 0.771}
+    p = load(tmp_path, data)
+    g = p.geometry
+    w0 = g.initial_world()
+    P = w0.objects["a"]
+    _, T = grasp_poses(g, "a", P, math.pi / 2, ("side",), np.random.default_rng(0), n_side=1)[0]
+    assert abs(T[1, 0]) > 0.99  # the tool along the counter
+    F = np.linalg.inv(T) @ P
+    w = replace(w0, objects={}, held={"left": ("a", F)})
+    assert PBSampler(0).regrasps(p, w, "a", "left", goal_variants(g, "a")) == []
+    assert any(_same_grasp(g, "a", F, H) for H in PBSampler(0).goal_grasps(p, "a"))
+    # the put-down's search agrees: held so, a is put down there
+    w = replace(w, base=(0.3, 0.0, 0.0))
+    w = w.with_arm("left", g.carry(w, "left", np.random.default_rng(0)))
+    step = GroundStep("place_at_goal", ("a", "left", "bpfgp_a_left", "gpfgp_a_left"))
+    found = list(PBSampler(stable_seed(0, 0, PBSampler.__qualname__))(p, step, w, np.random.default_rng(0)))
+    assert found and all(g.at_goal_pose("a", np.asarray(c.values["object_pose"])) for c in found)

@@ -15,6 +15,7 @@ _BEARINGS = tuple(round(-1.2 + 0.15 * k, 2) for k in range(17))  # rad off the b
 JITTER = (0.025, 0.075)  # half a cell (m, rad): samples spread over the whole cell
 AHEAD = 0.3  # rad
 BEARING_STEP = math.pi / 12  # rad between the approach directions tried
+SECTOR, NEAR = 0.8, 0.95  # rad off straight behind a fixed tool heading, m from it: Clutter's annulus (base_near)
 _VERSION = 1  # bump when the method changes: cached maps of the old one are ignored
 
 
@@ -90,20 +91,23 @@ def around(geometry, arm, rng, x, y, z, bearings=(), level=True):
     return base_near(rng, cells, x, y, bearings) if cells else annulus(rng, x, y)
 
 
-def standing(geometry, arm, x, y, z, heading=None) -> list:
+def standing(geometry, arm, x, y, z, heading=None, spread=0.0) -> list:
     """The (distance, bearing, world direction) of each cell of ``reach_cells(arm, z)`` from which the base,
-    seeing (x, y) along that world direction (every BEARING_STEP / 3, or along ``heading`` alone: a tool
-    heading fixed by the object's pose and grasp), stands within its limits and where it can drive (the
-    layout's ``base_area``, when it knows one). Cached per question: a search asks about one spot often."""
+    seeing (x, y) along that world direction (every BEARING_STEP / 3; with ``heading``, a tool heading fixed
+    by the object's pose and grasp, only within ``spread`` of it), stands within its limits and where it
+    can drive (the layout's ``base_area``, when it knows one). Cached per question: a search asks about
+    one spot often."""
     from .scene import base_limits
 
     layout = geometry.layout
-    key = (id(layout), arm, round(z / 0.05), float(x), float(y), heading)
+    key = (id(layout), arm, round(z / 0.05), float(x), float(y), heading, spread)
     hit = _STANDING.get(key)
     if hit is None or hit[0] is not layout:
         (lx, hx), (ly, hy) = base_limits(layout)
         area = layout.extra.get("base_area")
-        ways = (heading,) if heading is not None else np.arange(-math.pi, math.pi, BEARING_STEP / 3)
+        step = BEARING_STEP / 3
+        ways = np.arange(-math.pi, math.pi, step) if heading is None else \
+            heading + step * np.arange(-math.floor(spread / step), math.floor(spread / step) + 1)
         out = []
         for r, a in reach_cells(geometry.robot, arm, z):
             for b in ways:
@@ -116,7 +120,7 @@ def standing(geometry, arm, x, y, z, heading=None) -> list:
     return hit[1]
 
 
-_STANDING: dict = {}  # (id of the layout, arm, height, x, y, heading) -> (the layout, the cells that stand)
+_STANDING: dict = {}  # (id of the layout, arm, height, x, y, heading, spread) -> (the layout, the cells that stand)
 
 
 def reaching_base(geometry, arm, rng, x, y, z, heading=None):

@@ -292,9 +292,11 @@ def _fits(problem, world, obj, arm, T, grasp) -> bool:
     """Tool pose T (with grasp, tool_T_object) can put ``obj`` down: the hand, opened as the grasp needs, clear
     of fixed obstacles at T and where it retreats from, and (a level tool, a mobile base) a base pose clear
     of fixed obstacles from which the reach map says the arm reaches T (it measures level tools: a top
-    grasp, or a fixed base's, counts as reached)."""
+    grasp, or a fixed base's, counts as reached), standing where the put-down's own search stands its bases:
+    straight behind T (reaching_base), or off that line within SECTOR and NEAR of T (Clutter's annulus:
+    straight behind alone misses most there, e.g. beside a table's end; far off it the tool is not reached)."""
     from interlayer_manip.generators import _base_free, _yaw
-    from interlayer_manip.reachmap import base_of, standing
+    from interlayer_manip.reachmap import NEAR, SECTOR, base_of, standing
 
     geometry = problem.geometry
     hand = world.with_gripper(arm, geometry.opening(obj, grasp))
@@ -303,8 +305,11 @@ def _fits(problem, world, obj, arm, T, grasp) -> bool:
         at = geometry.hand_free(hand, arm, T, (obj,))
     if not (at and geometry.hand_free(hand, arm, back, (obj,))):
         return False
-    return _kind(T) == "top" or not geometry.robot.mobile or any(
-        _base_free(geometry, world, base_of(T[0, 3], T[1, 3], o)) for o in standing(geometry, arm, *T[:3, 3], _yaw(T)))
+    if _kind(T) == "top" or not geometry.robot.mobile:
+        return True
+    options = standing(geometry, arm, *T[:3, 3], _yaw(T)) + [
+        o for o in standing(geometry, arm, *T[:3, 3], _yaw(T), SECTOR) if o[0] <= NEAR]
+    return any(_base_free(geometry, world, base_of(T[0, 3], T[1, 3], o)) for o in options)
 
 
 def _fitting(problem, world, obj, arm, variants, known) -> list:
