@@ -980,3 +980,35 @@ def test_a_grasp_blocked_by_an_object_that_waits_for_this_one_ranks_last(tmp_pat
         sampler.best_hits[("k2", arm)] = (here["k2"], {"s": (here["s"], True)})
     ranked = in_the_way("s")
     assert ranked[0] == {"k0", "k1", "k3", "k4"} and "k2" in ranked[-1]
+
+
+def test_a_pick_whose_object_turned_under_the_tool_since_its_grasp_was_chosen_is_refused(tmp_path):
+    """rearrangement_10: plan shortcutting refines a later pick again with its old grasp after dropping an
+    earlier move of the object, which now stands turned. The tool point was still inside the block, so the
+    pick went ahead, holding it across its 12 cm length; the validator refused the plan ("wider than the
+    gripper opens"). The pick now asks what the validator asks of a grasp. Mutation: reach.grasps without
+    the width test."""
+    from interlayer.domain import GroundStep
+    from interlayer_pbjson.samplers import PBSampler
+
+    data = scene(goal_regions={"b": "goal"})
+    data["bodies"][4]["links"] = [[_box((0.06, 0.02, 0.04), (0, 0, 0.04), color=(1, 0, 0))]]  # 0.12 x 0.04 m
+    p = load(tmp_path, data)
+    g = p.geometry
+    step = GroundStep("pick", ("b", "left", "right", "bpfg_b_left", "gpfg_b_left", "gpfg_b_right"))
+    w = g.initial_world()
+    cand = next(iter(PBSampler([0])(p, step, w, np.random.default_rng(0))))
+    T = np.asarray(cand.values["gpfg_b_left"])
+    P = w.objects["b"]
+    assert g.grasp_width("b", np.linalg.inv(T) @ P) == pytest.approx(0.04)
+    # the block turned 66 degrees about the vertical through the tool point: the point stays inside it
+    a = math.radians(66)
+    turn = np.array([[math.cos(a), -math.sin(a), 0, 0], [math.sin(a), math.cos(a), 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+    at_tool = np.eye(4)
+    at_tool[:2, 3] = T[:2, 3]
+    turned = at_tool @ turn @ np.linalg.inv(at_tool) @ P
+    assert g.grasp_width("b", np.linalg.inv(T) @ turned) > g.robot.max_gripper_opening
+    # at the candidate's base already, the arms tucked: the check comes before any motion (None would raise)
+    w = replace(w, base=tuple(cand.waypoints[0]), arms={a: tuple(g.robot.home(a)) for a in g.robot.arms})
+    out = g.refine_step(step, replace(w, objects={**w.objects, "b": turned}), cand, None)
+    assert not out.ok and "does not hold b" in out.failure.detail, out.failure

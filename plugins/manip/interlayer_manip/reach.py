@@ -68,11 +68,14 @@ class Reach:
         return None
 
     def grasps(self, world, arm, obj) -> bool:
-        """The arm's tool point lies inside ``obj`` (what the validator calls a grasp)."""
+        """The arm's tool point lies inside ``obj`` and the gripper opens wider than ``obj`` is across the
+        fingers (what the validator calls a grasp)."""
         from .validate import _inside
 
         tool = self.robot.tool_pose(self.sync(world), arm)
-        return _inside(self.specs[obj], (np.linalg.inv(world.objects[obj]) @ tool)[:3, 3])
+        G = np.linalg.inv(tool) @ world.objects[obj]
+        return (_inside(self.specs[obj], np.linalg.inv(G)[:3, 3])
+                and self.grasp_width(obj, G) <= self.robot.max_gripper_opening)
 
     def approach_blocked(self, step, world, cand, acc) -> StepOutcome | None:
         """A folded pick's approach, from the candidate's base, checked against the movable objects:

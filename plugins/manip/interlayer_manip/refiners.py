@@ -33,8 +33,9 @@ class Refiners:
         base = tuple(float(v) for v in cand.waypoints[0])
         inner = type(cand)(tuple(cand.waypoints[1:]), cand.values, cand.label)
         w = replace(world, base=base)
-        if step.action == "pick":  # a blocked approach fails the step whatever the motions: check it first (cheap)
-            blocked = self.approach_blocked(step, world, cand, acc)
+        if step.action == "pick":  # a lost grasp or a blocked approach fails the step whatever the motions: first (cheap)
+            blocked = (self._grasp_lost(w, step.args[1], step.args[0], inner.waypoints[0][-1])
+                       or self.approach_blocked(step, world, cand, acc))
             if blocked is not None:
                 return blocked
         segs = []
@@ -169,15 +170,22 @@ class Refiners:
             tloc[key] = value
         return StepOutcome(True, replace(world, base=goal, tloc=tloc), segs)
 
+    def _grasp_lost(self, w, arm, obj, grasp) -> StepOutcome | None:
+        """The failure of a pick whose grasp (arm vector) does not hold ``obj`` where it stands in ``w``: a
+        candidate reused for another pose of the object (plan shortcutting refines a later pick again with
+        its old grasp after dropping an earlier move of that object)."""
+        if self.grasps(w.with_arm(arm, grasp), arm, obj):
+            return None
+        return StepOutcome(False, failure=Failure("ik", (), f"the grasp does not hold {obj} where it stands"))
+
     def _pick(self, step, world, cand, motion, acc):
         obj, arm = step.args[0], step.args[1]
         approach, lift = cand.waypoints
         pre, grasp = approach[0], approach[-1]
         segs, w = [], world
-        if not self.grasps(w.with_arm(arm, grasp), arm, obj):
-            # a candidate reused for another pose of the object (plan shortcutting refines a later pick
-            # again with its old grasp after dropping an earlier move of that object)
-            return StepOutcome(False, failure=Failure("ik", (), f"the grasp does not reach {obj} where it stands"))
+        lost = self._grasp_lost(w, arm, obj, grasp)
+        if lost:
+            return lost
         res = self._transit(motion, w, arm, w.arms[arm], pre, "pick transit", segs, acc, staged="goal")
         if not res.ok:
             return _failure(res, "pick transit", obj)
