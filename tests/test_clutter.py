@@ -382,4 +382,4 @@ def test_a_pick_whose_grasp_misses_the_object_fails():
     P = world.objects[t].copy()
     P[:2, 3] += 0.1
     out = geometry.refine_step(step, replace(world, objects={**world.objects, t: P}), cand, None)
-    assert not out.ok and "does not reach" in out.failure.detail
+    assert not out.ok and "does not hold" in out.failure.detail
