@@ -107,12 +107,20 @@ def _pitched_depth(robot, radius: float, height: float, pitch: float):
     6 .. 2 cm (the pads' centre below the rim) at which the hand, opened as for the approach, clears the
     cylinder itself, or None.
     It depends on the hand and the cylinder only: measured once per robot and size."""
-    known = robot.__dict__.setdefault("_pitched_depths", {})
-    key = (round(radius, 6), round(height, 6), pitch)
-    if key not in known:
+    def measure():
         cw, q = _hand_opened_for(robot, radius, height)
-        known[key] = next((d for d in (0.06, 0.05, 0.04, 0.03, 0.02) if d < height / 2 and not any(
+        return next((d for d in (0.06, 0.05, 0.04, 0.03, 0.02) if d < height / 2 and not any(
             cw.hand_collides(q, a, trans(0, 0, height / 2 - d) @ ry(pitch), movables=True) for a in robot.arms)), None)
+
+    return _measured_once(robot, ("pitched_depth", round(radius, 6), round(height, 6), pitch), measure)
+
+
+def _measured_once(robot, key, measure):
+    """``measure()``, kept on the robot under ``key``: a hand measurement that depends on the robot and an
+    object's size only."""
+    known = robot.__dict__.setdefault("_hand_measurements", {})
+    if key not in known:
+        known[key] = measure()
     return known[key]
 
 
@@ -175,6 +183,11 @@ def check_hand_fits(problem, world, obj):
         return  # check_graspable names the width
     ignore = tuple(geometry.fixed) + tuple(world.objects)
     blockers = set()
+    robot = geometry.robot
+    hands = {}  # arm -> its hand's links (collision pairs name links)
+    for a in robot.arms:
+        geoms = set(robot.gripper_links(a))
+        hands[a] = {robot.model.frames[g.parentFrame].name for g in robot.collision_model.geometryObjects if g.name in geoms}
     with geometry.tight():  # what planning allows at a grasp (the approach and the grasp keep LINE_PADDING)
         for T in poses.values():
             # a base 0.6 m behind the grasp, facing along the approach (a top grasp or a fixed base: where the robot is)
@@ -187,10 +200,7 @@ def check_hand_fits(problem, world, obj):
             if arm is None:
                 return  # not reached even with nothing in the way: no proof
             q = geometry.sync(w.with_arm(arm, v).with_gripper(arm, opened))
-            robot = geometry.robot
-            geoms = set(robot.gripper_links(arm))  # the hand's geometries -> their links (collision pairs name links)
-            hand = {robot.model.frames[g.parentFrame].name for g in robot.collision_model.geometryObjects if g.name in geoms}
-            hits = {b for a, b in geometry.cw.collision_pairs(q, movables=False) if a in hand and b in geometry.fixed}
+            hits = {b for a, b in geometry.cw.collision_pairs(q, movables=False) if a in hands[arm] and b in geometry.fixed}
             if not hits:
                 return
             blockers |= hits
@@ -210,9 +220,9 @@ def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10, hand_check=
     or pre-grasp whose hand alone (opened as the grasp needs) touches a fixed obstacle. The grasp and the
     lines keep LINE_PADDING from fixed obstacles (``geometry.tight``); their far ends, where the transits
     start and end, the full padding."""
-    with geometry.tight():
-        wps = _tool_lines(geometry, world, arm, T, kind, rng, obj, attempts, hand_check, splits)
     opened = geometry.opening(obj, np.linalg.inv(T) @ world.objects[obj])
+    with geometry.tight():
+        wps = _tool_lines(geometry, world, arm, T, kind, rng, obj, opened, attempts, hand_check, splits)
     if wps is None or not line_ends_clear(geometry, world.with_gripper(arm, opened), arm, (wps[0][0], wps[1][-1]), (obj,)):
         return None
     return wps
@@ -224,9 +234,8 @@ def line_ends_clear(geometry, world, arm, ends, ignore=()) -> bool:
     return all(geometry.static_path_ok(world, arm, [v], ignore) for v in ends)
 
 
-def _tool_lines(geometry, world, arm, T, kind, rng, obj, attempts, hand_check, splits):
+def _tool_lines(geometry, world, arm, T, kind, rng, obj, opened, attempts, hand_check, splits):
     ignore = (obj,)
-    opened = geometry.opening(obj, np.linalg.inv(T) @ world.objects[obj])
     if hand_check:
         hand = world.with_gripper(arm, opened)
         if not (geometry.hand_free(hand, arm, T, ignore) and
@@ -317,12 +326,11 @@ def seat(robot, radius: float, height: float) -> float:
     enough behind its tool point (PR2, Panda, UR5, TIAGo); the Kinova's palm reaches 0.4 mm into a 0.04 m
     cylinder centred at its tool point, so every such grasp touched the object it was about to pick.
     It depends on the hand and the cylinder only: measured once per robot and size."""
-    known = robot.__dict__.setdefault("_seats", {})
-    key = (round(radius, 6), round(height, 6))
-    if key not in known:
+    def measure():
         cw, q = _hand_opened_for(robot, radius, height, SEAT_GAP)
         steps = [k * SEAT_STEP for k in range(int(round(SEAT_MAX / SEAT_STEP)) + 1)]
         # none clear within SEAT_MAX: the grasp at the axis, as before (its approach will say what it touches)
-        known[key] = next((b for b in steps if not any(cw.hand_collides(q, a, trans(-b, 0, 0), movables=True)
-                                                       for a in robot.arms)), 0.0)
-    return known[key]
+        return next((b for b in steps if not any(cw.hand_collides(q, a, trans(-b, 0, 0), movables=True)
+                                                 for a in robot.arms)), 0.0)
+
+    return _measured_once(robot, ("seat", round(radius, 6), round(height, 6)), measure)
