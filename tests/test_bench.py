@@ -276,7 +276,7 @@ def test_rows_of_one_name_in_two_suites_are_told_apart_in_the_plots():
 
 def test_the_folder_suite_runs_every_file_of_the_users_folder_and_reports_each(tmp_path, capsys):
     """pbjson-folder: one row per *.json file of --problems DIR (a file the loaders refuse is 'refused',
-    with check's sentence); the report gives every file not solved with its status and reason; a
+    with check's sentence), with the work each run counted; the report gives every file not solved with its status and reason; a
     missing folder or one without JSON is one line, exit 2.
     Mutations: the rows no longer read from the folder (suite.py); UserError recorded as 'error' (worker.py)."""
     from test_pbjson import scene
@@ -292,6 +292,7 @@ def test_the_folder_suite_runs_every_file_of_the_users_folder_and_reports_each(t
     got = {r["row"]: r for r in runs(db_path)}
     assert sorted(got) == ["hold", "notes"], got
     assert got["hold"]["status"] == "solved", got["hold"]["reason"]
+    assert json.loads(got["hold"]["counts"])["refinement_attempts"] >= 1  # the work, not only the time
     assert got["notes"]["status"] == "refused" and "notes.json" in got["notes"]["reason"]
     assert main(["report", str(db_path), "--out", str(tmp_path / "report")]) == 0
     text = (tmp_path / "report" / "report.md").read_text()
@@ -321,3 +322,17 @@ def test_a_rows_own_time_limit_is_used_unless_the_command_line_sets_one(tmp_path
     bad = suite_file(tmp_path, "bad", [("slow", GRIPPER, [], 'time_limit = "long"')])
     with pytest.raises(UserError, match="row 'slow'.*positive number of seconds"):
         load_suite(str(bad))
+
+
+def test_a_database_written_before_the_wall_and_counts_columns_gains_them_and_keeps_its_runs(tmp_path):
+    path = tmp_path / "old.sqlite"
+    con = sqlite3.connect(path)
+    old = db.SCHEMA.replace("    wall TEXT,", "").replace("    counts TEXT,", "")
+    con.executescript(old)
+    con.execute("INSERT INTO runs (suite, row, combo, seed, time_limit, config, overrides, status, reason) "
+                "VALUES ('s', 'r', 'default', 0, 60, 'c.toml', '[]', 'solved', '')")
+    con.commit()
+    con.close()
+    con = db.connect(path)
+    assert {"wall", "counts"} <= {r[1] for r in con.execute("PRAGMA table_info(runs)")}
+    assert [tuple(r) for r in con.execute("SELECT status FROM runs")] == [("solved",)]

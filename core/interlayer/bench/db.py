@@ -24,6 +24,7 @@ CREATE TABLE IF NOT EXISTS runs (
     plan_length INTEGER, plan_cost REAL, replans INTEGER, task_planner_calls INTEGER,
     peak_memory_mb REAL, versions TEXT, host TEXT, started TEXT, finished TEXT,
     wall TEXT,                                          -- the wait's parts: start-up, planning, export, ... (JSON)
+    counts TEXT,                                        -- the work done: motion checks, IK calls, ... (JSON)
     PRIMARY KEY (suite, row, combo, seed, time_limit)
 );
 CREATE TABLE IF NOT EXISTS rows (
@@ -42,8 +43,9 @@ KEY_COLUMNS = ("suite", "row", "combo", "seed", "time_limit")
 _WHERE_KEY = " AND ".join(f"{c} = ?" for c in KEY_COLUMNS)
 RUN_COLUMNS = ("suite", "row", "combo", "seed", "time_limit", "config", "overrides", "status", "reason", "time_total",
                "wall_time", "times", "plan_length", "plan_cost", "replans", "task_planner_calls", "peak_memory_mb",
-               "versions", "host", "started", "finished", "wall")
-JSON_COLUMNS = ("overrides", "times", "versions", "wall")
+               "versions", "host", "started", "finished", "wall", "counts")
+JSON_COLUMNS = ("overrides", "times", "versions", "wall", "counts")
+ADDED_COLUMNS = ("wall", "counts")  # absent from databases written by older versions
 
 
 LOCKED_RETRIES = 40  # about 40 s of waiting in all
@@ -61,8 +63,10 @@ def connect(path, create: bool = True) -> sqlite3.Connection:
             con = sqlite3.connect(path, timeout=30, check_same_thread=False)  # a coordinator's threads claim runs
             con.execute("PRAGMA journal_mode=WAL")
             con.executescript(SCHEMA)
-            if "wall" not in {r[1] for r in con.execute("PRAGMA table_info(runs)")}:  # a database from before
-                con.execute("ALTER TABLE runs ADD COLUMN wall TEXT")
+            have = {r[1] for r in con.execute("PRAGMA table_info(runs)")}
+            for column in ADDED_COLUMNS:
+                if column not in have:
+                    con.execute(f"ALTER TABLE runs ADD COLUMN {column} TEXT")
             break
         except sqlite3.OperationalError as exc:
             # Switching to WAL while another coordinator sets the same database up fails at once as

@@ -113,7 +113,7 @@ def run_one(spec: dict) -> dict:
             "plan_length": res.get("plan_length"), "plan_cost": res.get("plan_cost"), "replans": res.get("replans"),
             "task_planner_calls": res.get("task_planner_calls"), "peak_memory_mb": res.get("peak_memory_mb"),
             "versions": res.get("versions"), "host": socket.gethostname(), "started": started, "finished": _now(),
-            "wall": parts}
+            "wall": parts, "counts": res.get("counts")}
 
 
 def plan_runs(suite: Suite, done: set, memory_mb, grace, keep_runs) -> list[dict]:

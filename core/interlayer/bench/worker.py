@@ -105,6 +105,7 @@ def plan(spec: dict) -> dict:
         return {"status": "refused", "reason": str(exc)}
     data = result.to_json()
     return {"status": result.status, "reason": result.reason, "times": data["times"], "wall": data["wall"],
+            "counts": data["counts"],
             "plan_length": len(result.plan) if result.solved else None,
             "plan_cost": result.plan_cost,
             "replans": result.replans, "task_planner_calls": result.task_planner_calls, "versions": versions(host)}
