@@ -138,3 +138,40 @@ def test_a_grasp_put_down_from_a_base_off_straight_behind_the_tool_asks_for_no_r
     step = GroundStep("place_at_goal", ("a", "left", "bpfgp_a_left", "gpfgp_a_left"))
     found = list(PBSampler(stable_seed(0, 0, PBSampler.__qualname__))(p, step, w, np.random.default_rng(0)))
     assert found and all(g.at_goal_pose("a", np.asarray(c.values["object_pose"])) for c in found)
+
+
+
+def test_a_grasp_judged_to_fit_off_straight_behind_the_tool_is_put_down_from_there(tmp_path):
+    """a (a box) stands 0.425 m in from the deep counter's front edge, turned 0.74 rad: every side grasp
+    holds the tool 0.74 rad or more off straight into the counter. _fits counts bases off straight behind the
+    tool (reachmap.behind: within SECTOR when NEAR) and judges the grasp with the tool at 0.74 rad to fit, so
+    the put-down must find one there: the annulus's bases face the spot and the arm does not reach the
+    turned tool from them, straight behind it the base stands under the counter; the bases off that line in
+    the front, the shoulder turned to the spot, reach it (sink_stove_4_40: picks ranked such grasps first,
+    then the put-down found nothing, 5 picks in a row, 18 replans and a timeout).
+    Mutations: _putdowns without its off-line search, or reaching_base ignoring off_line: no candidate."""
+    from interlayer.domain import GroundStep
+    from interlayer.refine import stable_seed
+    from interlayer_manip.grasps import grasp_poses
+    from interlayer_manip.reachmap import behind
+    from interlayer_pbjson.samplers import PBSampler, _fits
+
+    yaw = 0.74
+    data = deep_table(goal_poses={"a": "initial"})
+    data["bodies"][2].update(point={"x": 2.12, "y": 0.0, "z": 0.771},
+                             quat={"w": math.cos(yaw / 2), "x": 0.0, "y": 0.0, "z": math.sin(yaw / 2)})
+    p = load(tmp_path, data)
+    g = p.geometry
+    w0 = g.initial_world()
+    P = w0.objects["a"]
+    _, T = grasp_poses(g, "a", P, 0.0, ("side",), np.random.default_rng(0), n_side=1)[0]
+    heading = math.atan2(T[1, 0], T[0, 0])
+    assert abs(heading - yaw) < 0.05  # the tool along a's x axis
+    F = np.linalg.inv(T) @ P
+    assert _fits(p, replace(w0, objects={}), "a", "left", T, F)
+    assert any(o[2] != heading for o in behind(g, "left", *T[:3, 3], heading))  # off straight behind
+    w = replace(w0, base=(0.3, 0.0, 0.0), objects={}, held={"left": ("a", F)})
+    w = w.with_arm("left", g.carry(w, "left", np.random.default_rng(0)))
+    step = GroundStep("place_at_goal", ("a", "left", "bpfgp_a_left", "gpfgp_a_left"))
+    found = list(PBSampler(stable_seed(0, 0, PBSampler.__qualname__))(p, step, w, np.random.default_rng(0)))
+    assert found and all(g.at_goal_pose("a", np.asarray(c.values["object_pose"])) for c in found)

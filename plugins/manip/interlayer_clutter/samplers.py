@@ -366,18 +366,19 @@ class ClutterSampler(EpochState):
         return found[:limit]
 
 
-def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None, z=None):
+def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None, z=None, off_line=False):
     """One try at putting what ``arm`` holds down at (x, y): a base pose facing the spot (behind the tool
     if its ``heading`` is fixed; with ``z``, the object's height, one the reach map offers, else one of the
-    annulus), the object's pose ``pose_at(tool heading)`` (None: none there), IK, the lowering and the
-    retreat. Returns (base, object pose, tool pose, lowering, retreat, movables on the lowering and
-    retreat, movables on the straight joint-space line from the arm's posture) or None."""
+    annulus; ``off_line``: see reachmap.reaching_base), the object's pose ``pose_at(tool heading)`` (None:
+    none there), IK, the lowering and the retreat. Returns (base, object pose, tool pose, lowering,
+    retreat, movables on the lowering and retreat, movables on the straight joint-space line from the
+    arm's posture) or None."""
     from interlayer_manip.generators import LIFT, PRE_GRASP, _line, cleared_lowering, trans
 
     if z is None or not geometry.robot.mobile:
         base = base_near(geometry, x, y, rng, heading=heading)
     else:
-        base = reaching_base(geometry, arm, rng, x, y, z, heading)
+        base = reaching_base(geometry, arm, rng, x, y, z, heading, off_line)
     if base is None or not _base_free(geometry, world, base, tuck=arm):
         return None
     spread = 0.3 if geometry.robot.mobile else FIXED_SPREAD  # a fixed base turns the hand, not itself (grasp_poses)

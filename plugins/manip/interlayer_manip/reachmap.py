@@ -123,11 +123,24 @@ def standing(geometry, arm, x, y, z, heading=None, spread=0.0) -> list:
 _STANDING: dict = {}  # (id of the layout, arm, height, x, y, heading, spread) -> (the layout, the cells that stand)
 
 
-def reaching_base(geometry, arm, rng, x, y, z, heading=None):
+def behind(geometry, arm, x, y, z, heading) -> list:
+    """The :func:`standing` options for a tool heading fixed by the object's pose and grasp: straight behind
+    the tool at any distance, or off that line within SECTOR when NEAR (Clutter's annulus: beside a
+    table's end straight behind stands nowhere). A judgement of whether a grasp fits there (pbjson's _fits)
+    counts these, and a put-down's last search draws from them (reaching_base's ``off_line``), so that a
+    grasp judged to fit finds its base."""
+    return [o for o in standing(geometry, arm, x, y, z, heading, SECTOR) if o[2] == heading or o[0] <= NEAR]
+
+
+def reaching_base(geometry, arm, rng, x, y, z, heading=None, off_line=False):
     """A base pose from which ``arm`` reaches a level grasp at (x, y, z) and its pre-grasp, drawn from
-    :func:`standing` (None: no cell stands anywhere the base can). An annulus that faces the spot misses
-    what lies at the back of a deep table: the arm reaches it from 1.0-1.1 m, the shoulder turned to it."""
+    :func:`standing` (None: no cell stands anywhere the base can); with a fixed tool ``heading`` and
+    ``off_line``, from the options of :func:`behind` off straight behind the tool. An annulus that faces the
+    spot misses what lies at the back of a deep table: the arm reaches it from 1.0-1.1 m, the shoulder
+    turned to it."""
     options = standing(geometry, arm, x, y, z, heading)
+    if off_line and heading is not None:
+        options = [o for o in behind(geometry, arm, x, y, z, heading) if o[2] != heading]
     if not options:
         return None
     r, a, b = options[int(rng.integers(len(options)))]

@@ -223,12 +223,12 @@ class PBSampler(ClutterSampler):
 
         found = []
 
-        def search(spots, tries, z=None):
+        def search(spots, tries, z=None, off_line=False):
             for rank, (x, y, pose_at, heading) in enumerate(spots):
                 if rank >= 3 * limit and found:
                     break  # past the best spots, only search on while nothing at all was found
                 for _ in range(tries if rank < 3 * limit else 2 * tries):
-                    tried = putdown_motion(geometry, world, arm, x, y, clear_of_fixed(pose_at), rng, heading, z)
+                    tried = putdown_motion(geometry, world, arm, x, y, clear_of_fixed(pose_at), rng, heading, z, off_line)
                     if tried is None:
                         continue
                     base, P, T, lower, back, hit, sweep = tried
@@ -244,6 +244,10 @@ class PBSampler(ClutterSampler):
             # bases where the reach map says the arm reaches the spot's height and the base can stand (its
             # flood fill errs on the reachable side: most of those near the table's edge collide with it)
             search(spots[:3 * limit], 3 * per_spot, z)
+            if not found:
+                # none straight behind a fixed tool heading either: the bases off that line that _fits counts
+                # (reachmap.behind), or a grasp judged to fit there would find no put-down (sink_stove_4_40)
+                search([s for s in spots[:3 * limit] if s[3] is not None], 3 * per_spot, z, off_line=True)
         found.sort(key=lambda f: (f[0], f[1]))
         for nhit, _, base, x, y, P, T, lower, back in found:
             yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])),
@@ -292,11 +296,10 @@ def _fits(problem, world, obj, arm, T, grasp) -> bool:
     """Tool pose T (with grasp, tool_T_object) can put ``obj`` down: the hand, opened as the grasp needs, clear
     of fixed obstacles at T and where it retreats from, and (a level tool, a mobile base) a base pose clear
     of fixed obstacles from which the reach map says the arm reaches T (it measures level tools: a top
-    grasp, or a fixed base's, counts as reached), standing where the put-down's own search stands its bases:
-    straight behind T (reaching_base), or off that line within SECTOR and NEAR of T (Clutter's annulus:
-    straight behind alone misses most there, e.g. beside a table's end; far off it the tool is not reached)."""
+    grasp, or a fixed base's, counts as reached), standing where the put-down's own search stands its bases
+    (reachmap.behind: straight behind T, or off that line within SECTOR and NEAR of T)."""
     from interlayer_manip.generators import _base_free, _yaw
-    from interlayer_manip.reachmap import NEAR, SECTOR, base_of, standing
+    from interlayer_manip.reachmap import base_of, behind
 
     geometry = problem.geometry
     hand = world.with_gripper(arm, geometry.opening(obj, grasp))
@@ -307,9 +310,7 @@ def _fits(problem, world, obj, arm, T, grasp) -> bool:
         return False
     if _kind(T) == "top" or not geometry.robot.mobile:
         return True
-    options = standing(geometry, arm, *T[:3, 3], _yaw(T)) + [
-        o for o in standing(geometry, arm, *T[:3, 3], _yaw(T), SECTOR) if o[0] <= NEAR]
-    return any(_base_free(geometry, world, base_of(T[0, 3], T[1, 3], o)) for o in options)
+    return any(_base_free(geometry, world, base_of(T[0, 3], T[1, 3], o)) for o in behind(geometry, arm, *T[:3, 3], _yaw(T)))
 
 
 def _fitting(problem, world, obj, arm, variants, known) -> list:
