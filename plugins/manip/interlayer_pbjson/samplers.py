@@ -15,10 +15,11 @@
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import replace
 
 import numpy as np
-from interlayer.refine import Candidate
+from interlayer.refine import Candidate, GiveUp
 from interlayer_clutter.samplers import ClutterSampler, _pose_key, fmt, in_corridors, putdown_motion
 from interlayer_manip.scene import REST_GAP
 from interlayer_manip.state import PRE_GRASP, RES_BASE, pose4, trans, wrap
@@ -39,6 +40,13 @@ class PBSampler(ClutterSampler):
         # (obj, arm) -> (obj's pose key, {other object: (its pose key, whether it was in the way of obj's best grasp)}),
         # from the last ranking of obj's grasps in which the other object stood there
         self.best_hits: dict = {}
+
+    @staticmethod
+    def _goal_only(geometry, obj, surf) -> bool:
+        """The goal needs obj itself (no other object of a class) on surface surf, a table or region."""
+        goals = geometry.goals
+        return geometry.surfaces[surf].kind != "top" and any(
+            s == surf and goals["members"][o] == (obj,) for o, s in goals["on"].items())
 
     def __call__(self, problem, step, world, rng):
         if step.action == "pick":
@@ -63,6 +71,13 @@ class PBSampler(ClutterSampler):
         if found is None:
             return
         poly, top = found
+        if self._goal_only(geometry, obj, surf):
+            # fixed obstacles alone decide it: asked once per run
+            why = _NO_PUTDOWN.setdefault(geometry, {}).get((obj, surf))
+            if why is None:
+                why = _NO_PUTDOWN[geometry][(obj, surf)] = no_putdown(problem, world, obj, surf)
+            if why:  # the goal needs a put-down this planner cannot make: epoch after epoch would search in vain
+                raise GiveUp(why)
         G = world.held[arm][1]
         o = geometry.specs[obj]
         z = top + o.height / 2 + REST_GAP
@@ -327,6 +342,91 @@ def _fitting(problem, world, obj, arm, variants, known) -> list:
                 if not any(_same_grasp(geometry, obj, F, H) for H in [*known, *out]) and _fits(problem, world, obj, arm, T, F):
                     out.append(F)
     return out
+
+
+PUT_GRID, PUT_TURN = 0.0125, math.radians(5)  # m, rad: no_putdown's grid of object poses
+_NO_PUTDOWN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # geometry -> {(obj, surf): no_putdown's answer}
+
+
+def no_putdown(problem, world, obj, surf) -> str:
+    """Why no put-down of box ``obj`` on surface ``surf`` can succeed, or "" when one may. Every put-down
+    needs, at its object pose: obj's footprint inside the surface, obj clear of fixed obstacles, and, for the
+    grasp held there, the opened hand clear of them at the release and at each waypoint of the straight
+    retreat (putdown_motion), all with the line padding (LINE_PADDING, the least the planner keeps). Tried
+    on a grid of poses in the surface's own frame (PUT_GRID apart, every PUT_TURN of yaw) with every grasp
+    the gripper can hold (a regrasp could change the held one) and either hand. Not a proof (a grid, and
+    the retreat is this planner's only one): the caller gives up."""
+    from interlayer_clutter.samplers import from_frame
+    from interlayer_manip.grasps import LINE_STEP, _problem_grasps, grasp_poses
+
+    from .scene import oriented_box
+
+    geometry = problem.geometry
+    o = geometry.specs[obj]
+    if o.shape != "box":
+        return ""  # a cylinder's side grasps turn freely: no finite set
+    poly, top = geometry.surface(surf, world)
+    z = top + o.height / 2 + REST_GAP
+    ref = pose4(0.0, 0.0, z, 0.0)
+    grasps = []  # tool_T_object
+    for heading in np.linspace(-math.pi, math.pi, 8, endpoint=False):
+        for _, T in grasp_poses(geometry, obj, ref, heading, _problem_grasps(problem, obj), np.random.default_rng(0),
+                                n_side=1):
+            F = np.linalg.inv(T) @ ref
+            if not any(np.allclose(F, H, atol=1e-6) for H in grasps):
+                grasps.append(F)
+    if not grasps:
+        return ""  # check_graspable names the width
+    n = math.ceil(PRE_GRASP / LINE_STEP - 1e-9)
+    cx, cy, yaw0, hu, hv = oriented_box(poly)
+    us, vs = np.arange(-hu, hu + 1e-9, PUT_GRID), np.arange(-hv, hv + 1e-9, PUT_GRID)
+    turns = np.arange(0.0, (geometry.symmetry(obj) or math.pi) - 1e-9, PUT_TURN)
+    w = replace(world, held={})
+    poses = released = 0
+    blockers: set = set()
+    with geometry.tight():
+        geometry.sync(w)
+        for u in us:
+            for v in vs:
+                x, y = from_frame((cx, cy, yaw0), u, v)
+                for t in turns:
+                    P = pose4(float(x), float(y), z, yaw0 + float(t))
+                    if not all(inside(poly, px, py) for px, py in polygon_of(_spec_at(o, P))):
+                        continue
+                    with geometry.stats.timer("collision_checking"):
+                        if geometry.cw.objects_overlap(obj, P) & geometry.fixed:
+                            continue
+                    poses += 1
+                    for F in grasps:
+                        T = P @ np.linalg.inv(F)
+                        for arm in geometry.robot.arms:
+                            hand = w.with_gripper(arm, geometry.opening(obj, F))
+                            if not geometry.hand_free(hand, arm, T, (obj,)):
+                                continue
+                            released += 1
+                            back = [T @ trans(-PRE_GRASP * k / n, 0, 0) for k in range(1, n + 1)]
+                            hit = next((B for B in back if not geometry.hand_free(hand, arm, B, (obj,))), None)
+                            if hit is None:
+                                return ""
+                            if len(blockers) < 4:
+                                blockers |= _hand_hits(geometry, hand, arm, hit, obj)
+    where = f"{poses} poses of {obj} with its footprint inside {surf} and clear of fixed obstacles (a grid: " \
+            f"{PUT_GRID * 100:g} cm, {math.degrees(PUT_TURN):g} degrees)"
+    if not poses:
+        return f"{obj} fits nowhere on {surf}: {where}; the goal needs {obj} on {surf}"
+    if not released:
+        return (f"no put-down of {obj} on {surf} leaves the hand clear: at none of {where}, with any grasp the "
+                f"gripper can hold, is the hand clear of fixed obstacles; the goal needs {obj} on {surf}")
+    return (f"no put-down of {obj} on {surf} has a clear retreat: of {where}, {released} leave the hand clear where "
+            f"it lets go (counting each grasp and hand), but from each the hand's straight {PRE_GRASP * 100:g} cm retreat "
+            f"along its approach meets {', '.join(sorted(blockers))}, and this planner retreats no other way (not "
+            f"proved: a hand withdrawn upwards first might pass); the goal needs {obj} on {surf}")
+
+
+def _hand_hits(geometry, hand, arm, T, obj) -> set:
+    """The fixed obstacles the hand (opened as in ``hand``) touches with its tool frame at T."""
+    return {f for f in geometry.fixed
+            if not geometry.hand_free(hand, arm, T, (obj, *(g for g in geometry.fixed if g != f)))}
 
 
 def _spec_at(spec, P):
