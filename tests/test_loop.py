@@ -9,7 +9,7 @@ import pytest
 from interlayer.abstraction import abstract
 from interlayer.domain import ActionSpec, DomainSpec, GroundStep, Problem, Skolem
 from interlayer.loop import InterfaceLayer, LoopSettings
-from interlayer.refine import NO_CANDIDATES, Candidate, Failure, Infeasible, StepOutcome
+from interlayer.refine import NO_CANDIDATES, Candidate, Failure, GiveUp, Infeasible, StepOutcome
 
 SPEC = DomainSpec(
     name="scripted",
@@ -252,6 +252,15 @@ def test_infeasible_reference_ends_unsolvable(host):
 
     result, _ = run(lambda *a: None, gen=gen, host=host)
     assert result.status == "unsolvable" and result.reason == "a is too wide for the gripper"
+
+
+def test_a_generator_that_gives_up_ends_the_run_gave_up(host):
+    def gen(problem, step, world, rng):
+        raise GiveUp("no put-down of a on the shelf has a clear retreat")
+        yield
+
+    result, _ = run(lambda *a: None, gen=gen, host=host)
+    assert result.status == "gave_up" and result.reason == "no put-down of a on the shelf has a clear retreat"
 
 
 def test_candidates_are_computed_only_when_the_search_asks_for_them(host):
