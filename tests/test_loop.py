@@ -245,22 +245,15 @@ def test_unsolvable_task_level_problem(host):
     assert result.status == "unsolvable" and "no plan" in result.reason
 
 
-def test_infeasible_reference_ends_unsolvable(host):
+@pytest.mark.parametrize("exc, status", [(Infeasible, "unsolvable"), (GiveUp, "gave_up")])
+def test_infeasible_reference_ends_unsolvable_and_a_generator_giving_up_gave_up(host, exc, status):
+    """Infeasible: a domain's proof; GiveUp: a generator's own finite search found nothing, no proof."""
     def gen(problem, step, world, rng):
-        raise Infeasible("a is too wide for the gripper")
+        raise exc("a is too wide for the gripper")
         yield
 
     result, _ = run(lambda *a: None, gen=gen, host=host)
-    assert result.status == "unsolvable" and result.reason == "a is too wide for the gripper"
-
-
-def test_a_generator_that_gives_up_ends_the_run_gave_up(host):
-    def gen(problem, step, world, rng):
-        raise GiveUp("no put-down of a on the shelf has a clear retreat")
-        yield
-
-    result, _ = run(lambda *a: None, gen=gen, host=host)
-    assert result.status == "gave_up" and result.reason == "no put-down of a on the shelf has a clear retreat"
+    assert result.status == status and result.reason == "a is too wide for the gripper"
 
 
 def test_candidates_are_computed_only_when_the_search_asks_for_them(host):
