@@ -9,7 +9,7 @@ import pytest
 from interlayer.abstraction import abstract
 from interlayer.domain import ActionSpec, DomainSpec, GroundStep, Problem, Skolem
 from interlayer.loop import InterfaceLayer, LoopSettings
-from interlayer.refine import NO_CANDIDATES, Candidate, Failure, Infeasible, StepOutcome
+from interlayer.refine import NO_CANDIDATES, Candidate, Failure, GiveUp, Infeasible, StepOutcome
 
 SPEC = DomainSpec(
     name="scripted",
@@ -245,13 +245,15 @@ def test_unsolvable_task_level_problem(host):
     assert result.status == "unsolvable" and "no plan" in result.reason
 
 
-def test_infeasible_reference_ends_unsolvable(host):
+@pytest.mark.parametrize("exc, status", [(Infeasible, "unsolvable"), (GiveUp, "gave_up")])
+def test_infeasible_reference_ends_unsolvable_and_a_generator_giving_up_gave_up(host, exc, status):
+    """Infeasible: a domain's proof; GiveUp: a generator's own finite search found nothing, no proof."""
     def gen(problem, step, world, rng):
-        raise Infeasible("a is too wide for the gripper")
+        raise exc("a is too wide for the gripper")
         yield
 
     result, _ = run(lambda *a: None, gen=gen, host=host)
-    assert result.status == "unsolvable" and result.reason == "a is too wide for the gripper"
+    assert result.status == status and result.reason == "a is too wide for the gripper"
 
 
 def test_candidates_are_computed_only_when_the_search_asks_for_them(host):

@@ -52,9 +52,9 @@ def _innermost_frame(exc) -> str:
 
 
 def _passes_through(exc) -> bool:
-    from .refine import Infeasible
+    from .refine import GiveUp, Infeasible
 
-    return isinstance(exc, (UserError, Infeasible, PluginFault))
+    return isinstance(exc, (UserError, Infeasible, GiveUp, PluginFault))
 
 
 @contextmanager

@@ -10,7 +10,7 @@ from .abstraction import TaskModel
 from .domain import GroundStep
 from .names import relabel
 from .deadline import Deadline, DeadlineExceeded
-from .refine import NO_CANDIDATES, EpochState, Infeasible, PoseGenerator, Refinement, Refiner, drawn_within, stable_seed
+from .refine import NO_CANDIDATES, EpochState, GiveUp, Infeasible, PoseGenerator, Refinement, Refiner, drawn_within, stable_seed
 from .result import Result
 from .trace import Stats, Trace
 from .watchdog import NoProgress, ProgressWatch
@@ -220,7 +220,8 @@ class InterfaceLayer:
                     status, reason, refinement = self._run()
                 except Infeasible as exc:  # a domain's own proof that a reference has no instance
                     status, reason, refinement = "unsolvable", str(exc), None
-                except NoProgress as exc:  # nothing proved: the loop stopped itself (watchdog, exhausted budget)
+                except (NoProgress, GiveUp) as exc:  # nothing proved: the loop (watchdog, exhausted budget) or a
+                    # generator (its own finite search) stopped the run
                     status, reason, refinement = "gave_up", str(exc), None
                 except DeadlineExceeded as exc:
                     status, reason, refinement = "timeout", self._timeout_reason(exc, supervisor.stopped), None

@@ -15,7 +15,8 @@ Domains
     become symbols through ``Names`` (``Problem.labels`` shows them again).
 Pose generators
     ``fn(problem, step, world, rng) -> iterable of Candidate``; raise ``Infeasible`` when a
-    reference can never be instantiated. A generator that needs state between calls subclasses
+    reference can never be instantiated (proved), ``GiveUp`` when the generator's own finite search
+    shows it will find none for a step the goal needs (not proved: the run ends gave_up). A generator that needs state between calls subclasses
     ``EpochState`` (registered as the class): the loop makes a fresh, reseeded instance per epoch.
     A generator that yields nothing is a failure of kind ``NO_CANDIDATES``: an action's ``learn``
     templates for that kind tell the task planner so (e.g. that the reference has no instance until
@@ -52,7 +53,7 @@ from .motion import Clearance, ConfigSpace, InterpolatingPlanner, MotionPlan, Mo
 from .names import Names
 from .planning import TaskPlanner, TaskPlanResult
 from .plugins import Registry
-from .refine import NO_CANDIDATES, ROBOT_MOVED, Candidate, EpochState, Failure, Geometry, Infeasible, StepOutcome
+from .refine import NO_CANDIDATES, ROBOT_MOVED, Candidate, EpochState, Failure, Geometry, GiveUp, Infeasible, StepOutcome
 from .trace import Stats
 
 
@@ -73,7 +74,7 @@ class Drawing(Protocol):
 __all__ = [
     "API_VERSION", "hookimpl", "Registry", "UserError", "PluginFault",
     "DomainSpec", "ActionSpec", "Skolem", "Problem", "GroundStep", "TaskModel",
-    "Geometry", "Candidate", "StepOutcome", "Failure", "Infeasible", "EpochState", "ROBOT_MOVED", "NO_CANDIDATES",
+    "Geometry", "Candidate", "StepOutcome", "Failure", "Infeasible", "GiveUp", "EpochState", "ROBOT_MOVED", "NO_CANDIDATES",
     "Drawing",
     "ConfigSpace", "MotionQuery", "MotionPlan", "MotionPlanner", "InterpolatingPlanner", "segment_valid", "points_valid",
     "Clearance", "Stats",

@@ -73,6 +73,11 @@ class Infeasible(Exception):
     object fits the gripper): the run ends as unsolvable with this reason."""
 
 
+class GiveUp(Exception):
+    """Raised by a pose generator that knows, without a proof, that it will find no candidate for a step
+    the goal needs (a finite search of its own found none): the run ends as gave_up with this reason."""
+
+
 class Geometry(Protocol):
     """The domain's refinement runtime (``Problem.geometry``). Optional methods:
     ``trajectory_json(plan, outcomes) -> dict`` (written to ``trajectory.json``: ``{"initial":

@@ -366,13 +366,13 @@ class ClutterSampler(EpochState):
         return found[:limit]
 
 
-def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None, z=None, off_line=False):
+def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None, z=None, off_line=False, tall=0.0):
     """One try at putting what ``arm`` holds down at (x, y): a base pose facing the spot (behind the tool
     if its ``heading`` is fixed; with ``z``, the object's height, one the reach map offers, else one of the
     annulus; ``off_line``: see reachmap.reaching_base), the object's pose ``pose_at(tool heading)`` (None:
-    none there), IK, the lowering and the retreat. Returns (base, object pose, tool pose, lowering,
-    retreat, movables on the lowering and retreat, movables on the straight joint-space line from the
-    arm's posture) or None."""
+    none there), IK, the lowering and the retreat (with ``tall``, if the straight ones fail, both straight up
+    that far: vertical_putdown). Returns (base, object pose, tool pose, lowering, retreat, movables on the
+    lowering and retreat, movables on the straight joint-space line from the arm's posture) or None."""
     from interlayer_manip.generators import LIFT, PRE_GRASP, _line, cleared_lowering, trans
 
     if z is None or not geometry.robot.mobile:
@@ -397,6 +397,8 @@ def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None, z=Non
         back = _line(geometry, w.with_gripper(arm, opened), arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, put, rng,
                      gripper=opened, splits=LINE_SPLITS)
     lower = lower and back and cleared_lowering(geometry, w, arm, obj, opened, lower, back)
+    if not lower and tall:
+        lower, back = vertical_putdown(geometry, w, arm, obj, opened, T, put, tall)
     if not lower:
         return None
     with geometry.stats.timer("collision_checking"):
@@ -404,6 +406,25 @@ def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None, z=Non
         hit |= movables_on(geometry, w, arm, back, (), gripper=opened)
         sweep = movables_on(geometry, w, arm, coarse_line(w.arms[arm], lower[-1]), (), gripper=None)
     return base, P, T, lower, back, hit, sweep
+
+
+def vertical_putdown(geometry, world, arm, obj, opened, T, put, tall):
+    """(lowering, retreat) both straight up ``tall`` from the put-down at tool pose T (IK ``put``): the hand
+    comes down onto the spot and leaves it vertically, as between posts taller than what it holds, where a
+    retreat along the approach meets them. Their top ends clear the padded fixed obstacles (transits meet
+    there); (None, None) if not. IK seeds of its own: the caller's draws stay as they were."""
+    from interlayer_manip.generators import _line, line_ends_clear, trans
+
+    rng = np.random.default_rng(0)
+    hand = world.with_gripper(arm, opened)
+    with geometry.tight():
+        lower = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, tall, put, rng, splits=LINE_SPLITS)
+        back = lower and _line(geometry, hand, arm, T, lambda d: trans(0, 0, d) @ T, tall, put, rng, gripper=opened,
+                               splits=LINE_SPLITS)
+    if not (back and line_ends_clear(geometry, world, arm, (lower[-1],))
+            and line_ends_clear(geometry, hand, arm, (back[-1],), (obj,))):
+        return None, None
+    return lower, back
 
 
 def _reach_xy(base, T, step=0.05):

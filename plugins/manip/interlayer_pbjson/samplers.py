@@ -14,11 +14,14 @@
 """
 from __future__ import annotations
 
+import itertools
 import math
+import weakref
+from contextlib import nullcontext
 from dataclasses import replace
 
 import numpy as np
-from interlayer.refine import Candidate
+from interlayer.refine import Candidate, GiveUp
 from interlayer_clutter.samplers import ClutterSampler, _pose_key, fmt, in_corridors, putdown_motion
 from interlayer_manip.scene import REST_GAP
 from interlayer_manip.state import PRE_GRASP, RES_BASE, pose4, trans, wrap
@@ -39,6 +42,13 @@ class PBSampler(ClutterSampler):
         # (obj, arm) -> (obj's pose key, {other object: (its pose key, whether it was in the way of obj's best grasp)}),
         # from the last ranking of obj's grasps in which the other object stood there
         self.best_hits: dict = {}
+
+    @staticmethod
+    def _goal_only(geometry, obj, surf) -> bool:
+        """The goal needs obj itself (no other object of a class) on surface surf, a table or region."""
+        goals = geometry.goals
+        return geometry.surfaces[surf].kind != "top" and any(
+            s == surf and goals["members"][o] == (obj,) for o, s in goals["on"].items())
 
     def __call__(self, problem, step, world, rng):
         if step.action == "pick":
@@ -63,6 +73,13 @@ class PBSampler(ClutterSampler):
         if found is None:
             return
         poly, top = found
+        if self._goal_only(geometry, obj, surf):
+            # fixed obstacles alone decide it: asked once per run
+            why = _NO_PUTDOWN.setdefault(geometry, {}).get((obj, surf))
+            if why is None:
+                why = _NO_PUTDOWN[geometry][(obj, surf)] = no_putdown(problem, world, obj, surf)
+            if why:  # the goal needs a put-down this planner cannot make: epoch after epoch would search in vain
+                raise GiveUp(why)
         G = world.held[arm][1]
         o = geometry.specs[obj]
         z = top + o.height / 2 + REST_GAP
@@ -104,8 +121,22 @@ class PBSampler(ClutterSampler):
                 return None  # at this yaw, on another's goal pose or against an object
             return P
 
+        found = False
+        for cand in self._putdowns(problem, world, obj, arm, step.args[4], step.args[5],
+                                   [(x, y, lambda h, x=x, y=y, c=c: pose_at(x, y, h, c), None) for x, y, c in spots], z, rng):
+            found = True
+            yield cand
+        if found or not self._goal_only(geometry, obj, surf) or o.shape != "box":
+            return
+        # none: the grid's poses where the held grasp can be let go (putdown_grid), rare ones where the hand fits
+        # only at some yaws (between posts), which the random spots, their yaw set by the base's bearing, miss
+        key = (obj, surf, arm, tuple(np.round(G[:3, :4].ravel(), 4)))
+        grid = _GRID_FITS.setdefault(geometry, {}).get(key)
+        if grid is None:  # fixed obstacles alone decide it: once per run
+            fits = [P for P, _, _ in itertools.islice(putdown_grid(problem, world, obj, surf, [G], [arm]), 8 * GRID_SPOTS)]
+            grid = _GRID_FITS[geometry][key] = fits[::max(1, len(fits) // GRID_SPOTS)][:GRID_SPOTS]
         yield from self._putdowns(problem, world, obj, arm, step.args[4], step.args[5],
-                                  [(x, y, lambda h, x=x, y=y, c=c: pose_at(x, y, h, c), None) for x, y, c in spots], z, rng)
+                                  [(float(P[0, 3]), float(P[1, 3]), lambda h, P=P: P, None, True) for P in grid], z, rng)
 
     def place_at_goal(self, problem, step, world, rng):
         from interlayer_manip.generators import _yaw
@@ -211,24 +242,32 @@ class PBSampler(ClutterSampler):
 
         overlap = {}  # the objects where the last pose offered stands (putdown_motion asks once per try)
 
-        def clear_of_fixed(pose_at):
+        def clear_of_fixed(pose_at, tight):
             def at(heading):
                 P = pose_at(heading)
                 if P is None:
                     return None
-                with geometry.stats.timer("collision_checking"):
+                with geometry.stats.timer("collision_checking"), geometry.tight() if tight else nullcontext():
+                    if tight:
+                        geometry.sync(world)  # the tight world keeps its own placements
                     overlap["hits"] = geometry.cw.objects_overlap(obj, P)
                 return None if overlap["hits"] & geometry.fixed else P
             return at
 
         found = []
 
+        z_spot = z  # a grid pose's bases come from the reach map: the arm reaches it from the side, seldom from the annulus
+
         def search(spots, tries, z=None, off_line=False):
-            for rank, (x, y, pose_at, heading) in enumerate(spots):
+            for rank, (x, y, pose_at, heading, *grid) in enumerate(spots):
                 if rank >= 3 * limit and found:
                     break  # past the best spots, only search on while nothing at all was found
-                for _ in range(tries if rank < 3 * limit else 2 * tries):
-                    tried = putdown_motion(geometry, world, arm, x, y, clear_of_fixed(pose_at), rng, heading, z, off_line)
+                # a pose of putdown_grid: checked with the line padding, as the release is, and let down vertically
+                # if need be, as the grid allowed
+                tight = bool(grid and grid[0])
+                for _ in range(GRID_TRIES if tight else tries if rank < 3 * limit else 2 * tries):
+                    tried = putdown_motion(geometry, world, arm, x, y, clear_of_fixed(pose_at, tight), rng, heading,
+                                           z_spot if tight else z, off_line, tall=TALL if tight else 0.0)
                     if tried is None:
                         continue
                     base, P, T, lower, back, hit, sweep = tried
@@ -328,6 +367,114 @@ def _fitting(problem, world, obj, arm, variants, known) -> list:
                 if not any(_same_grasp(geometry, obj, F, H) for H in [*known, *out]) and _fits(problem, world, obj, arm, T, F):
                     out.append(F)
     return out
+
+
+PUT_GRID, PUT_TURN = 0.0125, math.radians(5)  # m, rad: putdown_grid's object poses
+# putdown_grid's poses a put-down search tries after its random spots, at most, and the bases drawn for each (the arm
+# reaches such a pose from few: real_regrasp, 2 % of the reach map's bases)
+GRID_SPOTS, GRID_TRIES = 12, 24
+TALL = 0.3  # m: a vertical lowering and retreat (vertical_putdown) lift the hand over posts this much above the spot
+_NO_PUTDOWN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # geometry -> {(obj, surf): no_putdown's answer}
+_GRID_FITS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # geometry -> {(obj, surf, arm, grasp): poses}
+
+
+def _grasps_of(problem, obj, z) -> list:
+    """Every grasp (tool_T_object) of ``obj`` the gripper can hold, from 8 headings."""
+    from interlayer_manip.grasps import _problem_grasps, grasp_poses
+
+    ref, out = pose4(0.0, 0.0, z, 0.0), []
+    for heading in np.linspace(-math.pi, math.pi, 8, endpoint=False):
+        for _, T in grasp_poses(problem.geometry, obj, ref, heading, _problem_grasps(problem, obj),
+                                np.random.default_rng(0), n_side=1):
+            F = np.linalg.inv(T) @ ref
+            if not any(np.allclose(F, H, atol=1e-6) for H in out):
+                out.append(F)
+    return out
+
+
+def putdown_grid(problem, world, obj, surf, grasps, arms, tally=None):
+    """The poses P of box ``obj`` on surface ``surf`` (a grid in the surface's own frame: PUT_GRID apart, every
+    PUT_TURN of yaw), with the grasp F and arm, that pass what every put-down there needs: obj's footprint
+    inside the surface and obj clear of fixed obstacles, and the hand, opened for F, clear of them where it
+    lets go and at each waypoint of a retreat, straight back along its approach (PRE_GRASP) or straight up
+    (TALL, its top with the full padding: vertical_putdown), all else with the line padding (LINE_PADDING,
+    what the release and the lines keep). Yields (P, F, arm); ``tally`` counts the poses, the releases and
+    the obstacles the retreats met."""
+    from interlayer_clutter.samplers import from_frame
+    from interlayer_manip.grasps import LINE_STEP
+
+    from .scene import oriented_box
+
+    geometry = problem.geometry
+    o = geometry.specs[obj]
+    tally = {} if tally is None else tally
+    tally.update(poses=0, released=0, blockers=set())
+    poly, top = geometry.surface(surf, world)
+    z = top + o.height / 2 + REST_GAP
+    back = [trans(-PRE_GRASP * k / n, 0, 0) for n in [math.ceil(PRE_GRASP / LINE_STEP - 1e-9)] for k in range(1, n + 1)]
+    up = [trans(0, 0, TALL * k / n) for n in [math.ceil(TALL / LINE_STEP - 1e-9)] for k in range(1, n + 1)]
+    cx, cy, yaw0, hu, hv = oriented_box(poly)
+    w = replace(world, held={})
+    for u in np.arange(-hu, hu + 1e-9, PUT_GRID):
+        for v in np.arange(-hv, hv + 1e-9, PUT_GRID):
+            x, y = from_frame((cx, cy, yaw0), u, v)
+            for t in np.arange(0.0, (geometry.symmetry(obj) or math.pi) - 1e-9, PUT_TURN):
+                P = pose4(float(x), float(y), z, yaw0 + float(t))
+                if not all(inside(poly, px, py) for px, py in polygon_of(_spec_at(o, P))):
+                    continue
+                with geometry.tight(), geometry.stats.timer("collision_checking"):
+                    geometry.sync(w)
+                    if geometry.cw.objects_overlap(obj, P) & geometry.fixed:
+                        continue
+                tally["poses"] += 1
+                for F in grasps:
+                    T = P @ np.linalg.inv(F)
+                    for arm in arms:
+                        hand = w.with_gripper(arm, geometry.opening(obj, F))
+                        with geometry.tight():  # never yield inside it
+                            if not geometry.hand_free(hand, arm, T, (obj,)):
+                                continue
+                            tally["released"] += 1
+                            hit = next((T @ B for B in back if not geometry.hand_free(hand, arm, T @ B, (obj,))), None)
+                            if hit is not None and len(tally["blockers"]) < 4:
+                                tally["blockers"] |= _hand_hits(geometry, hand, arm, hit, obj)
+                            lifted = hit is not None and all(geometry.hand_free(hand, arm, B @ T, (obj,)) for B in up)
+                        if hit is None or (lifted and geometry.hand_free(hand, arm, up[-1] @ T, (obj,))):
+                            yield P, F, arm
+
+
+def no_putdown(problem, world, obj, surf) -> str:
+    """Why no put-down of box ``obj`` on surface ``surf`` can succeed, or "" when one may: no pose of
+    putdown_grid passes, with any grasp the gripper can hold (a regrasp could change the held one) and
+    either hand. Not a proof (a grid, and the planner's own lowerings and retreats): the caller gives up."""
+    geometry = problem.geometry
+    o = geometry.specs[obj]
+    if o.shape != "box":
+        return ""  # a cylinder's side grasps turn freely: no finite set
+    grasps = _grasps_of(problem, obj, 0.0)
+    if not grasps:
+        return ""  # check_graspable names the width
+    tally: dict = {}
+    if next(putdown_grid(problem, world, obj, surf, grasps, geometry.robot.arms, tally), None) is not None:
+        return ""
+    where = f"{tally['poses']} poses of {obj} with its footprint inside {surf} and clear of fixed obstacles (a grid: " \
+            f"{PUT_GRID * 100:g} cm, {math.degrees(PUT_TURN):g} degrees)"
+    if not tally["poses"]:
+        return f"{obj} fits nowhere on {surf}: {where}; the goal needs {obj} on {surf}"
+    if not tally["released"]:
+        return (f"no put-down of {obj} on {surf} leaves the hand clear: at none of {where}, with any grasp the "
+                f"gripper can hold, is the hand clear of fixed obstacles; the goal needs {obj} on {surf}")
+    return (f"no put-down of {obj} on {surf} has a clear retreat: of {where}, {tally['released']} leave the hand clear "
+            f"where it lets go (counting each grasp and hand), but from each the hand's straight "
+            f"{PRE_GRASP * 100:g} cm retreat along its approach meets {', '.join(sorted(tally['blockers']))}, and "
+            f"its {TALL * 100:g} cm retreat straight up is not clear either (not proved: this planner retreats no "
+            f"other way); the goal needs {obj} on {surf}")
+
+
+def _hand_hits(geometry, hand, arm, T, obj) -> set:
+    """The fixed obstacles the hand (opened as in ``hand``) touches with its tool frame at T."""
+    return {f for f in geometry.fixed
+            if not geometry.hand_free(hand, arm, T, (obj, *(g for g in geometry.fixed if g != f)))}
 
 
 def _spec_at(spec, P):
