@@ -1012,3 +1012,28 @@ def test_a_pick_whose_object_turned_under_the_tool_since_its_grasp_was_chosen_is
     w = replace(w, base=tuple(cand.waypoints[0]), arms={a: tuple(g.robot.home(a)) for a in g.robot.arms})
     out = g.refine_step(step, replace(w, objects={**w.objects, "b": turned}), cand, None)
     assert not out.ok and "does not hold b" in out.failure.detail, out.failure
+
+
+def test_a_class_goal_whose_every_object_no_grasp_can_take_is_proved_unsolvable(tmp_path):
+    """Hold a or c: each stands 2.5 cm from a wall taller than itself, so every grasp that fits puts the fingers
+    into its wall (``no_grasp_fits``, over the finite grasp set of a box, fixed obstacles only). Neither alone is
+    needed by the goal, so no proof at the first pick; the pick fails as ``ungraspable``: NoGrasp for both arms,
+    kept across resets (lasting), and the task planner then proves the goal unreachable. Before, each NoGrasp
+    was learned for one arm, forgotten at each reset, and the run gave up or timed out. Mutation: the pick's
+    failure not ``lasting`` (the run then cycles until the watch gives up)."""
+    data = wall_scene(gap=0.025)
+    a, wall = data["bodies"][3], data["bodies"][-1]
+    c, wall_c = copy.deepcopy(a), copy.deepcopy(wall)
+    c["name"], wall_c["name"] = "c", "wall_c"
+    c["point"]["y"] -= 0.4
+    wall_c["point"]["y"] -= 0.4
+    data["bodies"] += [c, wall_c]
+    data["task"]["object_names"] = ["a", "c"]
+    data["task"]["goal_holding"] = ["a", "c"]
+    path = tmp_path / "walls.json"
+    path.write_text(json.dumps(data))
+    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=120"])
+    assert result.status == "unsolvable", result.reason
+    assert "no plan exists with what no action can change" in result.reason
+    for obj, w in (("a", "wall"), ("c", "wall_c")):
+        assert f"every grasp of {obj} that fits the gripper puts the PR2's fingers into {w} " in result.reason, result.reason
