@@ -91,7 +91,7 @@ class ProgressWatch:
             if self.same_ends + 1 >= REPEAT_LIMIT:
                 shown = ", ".join(sorted(dead_end)[:6]) + (", ..." if len(dead_end) > 6 else "")
                 raise NoProgress(f"{REPEAT_LIMIT} epochs in a row, each with new samples, ended in the same dead end: "
-                                 f"the task planner found no plan once it had learned {shown}")
+                                 f"the task planner found no plan once it had learned {shown or 'no fact besides the lasting ones'}")
             if repeating:
                 raise NoProgress(f"the reset cycle repeats the same state: {REPEAT_LIMIT} epochs in a row tried the same "
                                  f"candidates with the same outcomes (do the pose generators use the rng they are "
