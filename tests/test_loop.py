@@ -639,3 +639,32 @@ def test_a_generator_that_yields_nothing_counts_against_the_step_budget(host):
                     time_limit=3.0)
     assert result.status != "solved"
     assert first_pass(result) == [(0, True)] * 3
+
+
+def test_a_lasting_failure_is_kept_across_resets_and_its_proof_ends_the_run_unsolvable(host):
+    """A failure marked ``lasting`` (a proof from what never moves: here z, which nothing can take, stands in
+    a's way) teaches facts every epoch starts with: after the dead end and its reset the task planner, given
+    them, proves the goal unreachable, and the reason is the failure's own sentence. Mutation: new_epoch
+    clears the kept facts (the run then cycles until the watch gives up)."""
+    result, _ = run(lambda item, label, world, n: Failure("obstruction", ("z",), "z is bolted down in front of a",
+                                                          lasting=True), host=host)
+    assert result.status == "unsolvable", result.reason
+    assert "no plan exists with what no action can change: z is bolted down in front of a" in result.reason
+    assert result.counts["resets"] == 1
+
+
+def test_the_same_dead_end_with_lasting_facts_three_epochs_in_a_row_gives_up_naming_both(host):
+    """b is in a's way (a sampled fact, forgotten at each reset); z, which nothing can take, is in b's way
+    (lasting). Each epoch learns that b blocks a again and ends in a dead end after an obstruction: after
+    three epochs with the same obstructions the run gives up, naming them and the lasting sentence. Mutation: the watch's
+    same-dead-end rule removed (the run then cycles until the time limit)."""
+    def script(item, label, world, n):
+        if item == "b":
+            return Failure("obstruction", ("z",), "z is bolted down in front of b", lasting=True)
+        return Failure("obstruction", ("b",)) if "b" not in world else None
+
+    result, _ = run(script, host=host, time_limit=60)
+    assert result.status == "gave_up", result.reason
+    assert "3 epochs in a row, each with new samples, ended in the same dead end" in result.reason
+    assert "(Obstructs b gp_a a)" in result.reason and "z is bolted down in front of b" in result.reason
+    assert result.counts["resets"] == 3

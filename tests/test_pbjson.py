@@ -1012,3 +1012,53 @@ def test_a_pick_whose_object_turned_under_the_tool_since_its_grasp_was_chosen_is
     w = replace(w, base=tuple(cand.waypoints[0]), arms={a: tuple(g.robot.home(a)) for a in g.robot.arms})
     out = g.refine_step(step, replace(w, objects={**w.objects, "b": turned}), cand, None)
     assert not out.ok and "does not hold b" in out.failure.detail, out.failure
+
+
+def test_a_class_goal_whose_every_object_no_grasp_can_take_is_proved_unsolvable(tmp_path):
+    """Hold a or c: each stands 2.5 cm from a wall taller than itself, so every grasp that fits puts the fingers
+    into its wall (``no_grasp_fits``, over the finite grasp set of a box, fixed obstacles only). Neither alone is
+    needed by the goal, so no proof at the first pick; the pick fails as ``ungraspable``: NoGrasp for both arms,
+    kept across resets (lasting), and the task planner then proves the goal unreachable. Before, each NoGrasp
+    was learned for one arm, forgotten at each reset, and the run gave up or timed out. Mutation: the pick's
+    failure not ``lasting`` (the run then cycles until the watch gives up)."""
+    data = wall_scene(gap=0.025)
+    a, wall = data["bodies"][3], data["bodies"][-1]
+    c, wall_c = copy.deepcopy(a), copy.deepcopy(wall)
+    c["name"], wall_c["name"] = "c", "wall_c"
+    c["point"]["y"] -= 0.4
+    wall_c["point"]["y"] -= 0.4
+    data["bodies"] += [c, wall_c]
+    data["task"]["object_names"] = ["a", "c"]
+    data["task"]["goal_holding"] = ["a", "c"]
+    path = tmp_path / "walls.json"
+    path.write_text(json.dumps(data))
+    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=120"])
+    assert result.status == "unsolvable", result.reason
+    assert "no plan exists with what no action can change" in result.reason
+    for obj, w in (("a", "wall"), ("c", "wall_c")):
+        assert f"every grasp of {obj} that fits the gripper puts the PR2's fingers into {w} " in result.reason, result.reason
+
+
+@pytest.mark.slow
+def test_a_goal_region_that_only_an_object_no_grasp_can_move_fills_gives_up_naming_it(tmp_path):
+    """panel in small: box a stands 2.5 cm from a wall (no grasp fits: ``no_grasp_fits``) and fills region
+    goal, where b must go. Every put-down of b there meets a, so it fails at once naming a (no transit to it),
+    the pick of a fails as ``ungraspable`` (lasting), and after three epochs ending in the same dead end the
+    run gives up naming both, instead of timing out (the limit is high: the work decides, not the clock).
+    Mutation: put-downs meeting an object no grasp can move offered as before (each is refined, transit
+    included, and fails in the refinement)."""
+    data = wall_scene(gap=0.025)
+    data["bodies"].append(_body("b", (1.2, -0.3, 0.751), [_box((0.03, 0.025, 0.08), (0, 0, 0.08), color=(1, 0, 0))]))
+    data["task"]["object_names"] = ["a", "b"]
+    data["task"]["goal_holding"] = None
+    data["task"]["goal_regions"] = {"b": "goal"}
+    data["task"]["regions"][0]["hull"] = [[0.98, -0.06], [0.98, 0.04], [1.12, 0.04], [1.12, -0.06]]
+    path = tmp_path / "filled.json"
+    path.write_text(json.dumps(data))
+    result = api.solve(str(path), ["planner.seed=0", "planner.time_limit=900"])
+    assert result.status == "gave_up", result.reason
+    assert "3 epochs in a row, each with new samples, ended in the same dead end" in result.reason
+    assert "(PDObstructs a gpfpd_b_" in result.reason
+    failed = [e["failure"]["detail"] for e in result.trace.events if e["type"] == "failure" and e["action"].startswith("place")]
+    assert failed and set(failed) == {"put-down: every one found meets a, which no grasp can move"}, failed
+    assert "every grasp of a that fits the gripper puts the PR2's fingers into wall " in result.reason, result.reason

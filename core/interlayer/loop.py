@@ -61,6 +61,10 @@ class InterfaceLayer:
         self.epoch = 0  # bumped by every MaxTrajCount reset: reseeds the pose generators
         self._epoch_states: dict = {}  # EpochState class -> its instance for this epoch
         self.learned: list = []  # facts learned in this epoch (a reset clears them)
+        # facts of ``lasting`` failures (proofs from what never moves) and those failures' sentences: every
+        # epoch starts with them
+        self.kept: list = []
+        self.kept_why: list = []
         self.times_learned: Counter = Counter()  # fact -> how often it was learned in this epoch
         self.task_calls = 0
         self.replans = 0
@@ -139,8 +143,21 @@ class InterfaceLayer:
         """Alg. 1, lines 15-16: forget the learned facts and reseed the pose generators."""
         self.epoch += 1
         self._epoch_states.clear()
-        self.learned = []
+        self.learned = list(self.kept)
         self.times_learned.clear()
+
+    def _keep(self, facts, why: str) -> None:
+        """Keep ``facts`` (of a ``lasting`` failure, explained by ``why``) for the rest of the run."""
+        self.kept += [a for a in facts if a not in self.kept]
+        if why and why not in self.kept_why:
+            self.kept_why.append(why)
+
+    def _without_plan(self):
+        """The end of a run whose task planner found no plan from the start with the kept facts."""
+        known = "; ".join(self.kept_why) or ", ".join(map(logic.literal_str, self.kept))
+        if self.last_task_status == "unsolvable":
+            return "unsolvable", f"the task planner proved that no plan exists with what no action can change: {known}", None
+        return "gave_up", f"the task planner found no plan with what no action can change ({known}) without proving that none exists ({self.last_task_reason})", None
 
     def translate(self, failure, step: GroundStep) -> tuple[set, set]:
         """The atoms the translators learned true and those they learned false (``logic.negated``)."""
@@ -222,7 +239,8 @@ class InterfaceLayer:
                     status, reason, refinement = "unsolvable", str(exc), None
                 except (NoProgress, GiveUp) as exc:  # nothing proved: the loop (watchdog, exhausted budget) or a
                     # generator (its own finite search) stopped the run
-                    status, reason, refinement = "gave_up", str(exc), None
+                    known = f"; what no action can change: {'; '.join(self.kept_why)}" if self.kept_why else ""
+                    status, reason, refinement = "gave_up", f"{exc}{known}", None
                 except DeadlineExceeded as exc:
                     status, reason, refinement = "timeout", self._timeout_reason(exc, supervisor.stopped), None
         except DeadlineExceeded as exc:  # the supervisor's, delivered while the run was ending
@@ -288,7 +306,7 @@ class InterfaceLayer:
             if self._out_of_time():
                 break
             self.trace.emit("refine", mode="partial", from_step=step, plan=plan_json(self.plan), epoch=self.epoch)
-            traj_count, new_plan = 0, None
+            traj_count, new_plan, ends = 0, None, set()  # ends: predicates of the facts after which no plan was found
             for partial in _with_result(refiner.try_refine(self.plan, step, world, prefix, partial=True)):  # lines 7-8
                 if isinstance(partial, Refinement):
                     # a generator with epoch state may offer other candidates than in the error-free pass
@@ -298,6 +316,8 @@ class InterfaceLayer:
                 true, false = self.translate(partial.failure, self.plan[f])
                 if not true and not false and partial.failure.kind != NO_CANDIDATES:  # (the watch saw that one)
                     self.watch.untranslated(partial.failure, self.plan[f])
+                if partial.failure.lasting:
+                    self._keep(sorted(true) + [logic.negated(a) for a in sorted(false)], partial.failure.detail)
                 true, false = true - states[f], false & states[f]  # only what changes the state
                 facts = sorted(true) + [logic.negated(a) for a in sorted(false)]
                 shown = [logic.literal_str(a) for a in facts]
@@ -323,20 +343,34 @@ class InterfaceLayer:
                                     plan=plan_json(self.plan))
                     break
                 self.trace.emit("dead_end", step=f, facts=shown, status=self.last_task_status)
+                ends.update(_predicate(a) for a in facts)
                 if traj_count >= self.settings.max_traj_count or self._out_of_time():
                     break
             if new_plan is None and not self._out_of_time():  # lines 14-17
+                # the dead end's kind of facts, all those the epoch learned: the same each epoch whatever order
+                # the task planner tried them in
+                same = {logic.literal_str(a) for a in self.learned if a not in self.kept and _predicate(a) in ends}
+                dead_end = traj_count < self.settings.max_traj_count
                 self.new_epoch()
                 refiner.max_attempts = self.settings.max_refine_attempts * (self.epoch + 1)
-                states = self.progress_all(init, self.plan)  # learned facts cleared
-                step, prefix, world = 0, {}, world0
                 self.trace.emit("reset", epoch=self.epoch, traj_count=traj_count,
                                 reason="MaxTrajCount reached" if traj_count >= self.settings.max_traj_count
                                 else "no partial refinement led to a solvable state")
                 self.stats.count("resets")
-                self.watch.reset(traj_count, self.plan)
+                if self.kept:  # the plan may need what is now known impossible: plan again with the kept facts
+                    fresh = self.call_task_planner(self.with_learned(init), 0)
+                    if fresh is None:
+                        return self._without_plan()
+                    self.plan = fresh
+                states = self.progress_all(self.with_learned(init), self.plan)  # learned facts cleared, kept ones kept
+                step, prefix, world = 0, {}, world0
+                self.watch.reset(traj_count, self.plan, same if dead_end and self.kept else None)
             self.watch.check_trace(len(self.trace.events))
         return "timeout", f"the time limit of {self.settings.time_limit:g} s was reached before a refinement was found", None
+
+
+def _predicate(literal) -> str:
+    return literal.arg.name if isinstance(literal, logic.Not) else literal[0]
 
 
 def _with_result(gen):

@@ -36,6 +36,9 @@ class Failure:
     # True when no other instantiation of the earlier steps can change the verdict (a dedicated module's,
     # e.g. stackability from diameters): TryRefine then stops instead of backtracking over them
     static: bool = False
+    # True when the facts it teaches hold for the rest of the run whatever any action or reset does (a proof
+    # from fixed obstacles, e.g. no grasp of an object clears them): the loop keeps them across resets
+    lasting: bool = False
     # objects for the templates' other ``?blocker...`` variables, e.g. {"?blocker2": ("o5",)} (what blocks
     # the other arm's best grasp of the object a pick failed on), or a function giving them: called only
     # when the failure is translated (the partial pass), not for every failed attempt

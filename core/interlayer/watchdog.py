@@ -28,6 +28,7 @@ class ProgressWatch:
         self.model = model
         self.barren: list[set] = []  # culprits of each reset in a row that learned nothing
         self.repeats, self.last_signature = 0, None
+        self.same_ends, self.last_end = 0, None  # dead ends in a row after the same facts (with kept ones)
         self.epoch_attempts: deque = deque(maxlen=RATE_WINDOW)  # refinement attempts of each of the last epochs
         self._new_epoch()
 
@@ -65,9 +66,15 @@ class ProgressWatch:
             raise NoProgress(f"the trace reached {MAX_TRACE_EVENTS} events without a solution; {self._summary()}")
 
     # -- the decision at each reset ------------------------------------------------------
-    def reset(self, learned: int, plan) -> None:
-        """Called at every reset (Alg. 1, lines 14-17) with the number of facts learned in the epoch."""
+    def reset(self, learned: int, plan, dead_end: set | None = None) -> None:
+        """Called at every reset (Alg. 1, lines 14-17) with the number of facts learned in the epoch and,
+        when the epoch ended in a dead end while facts that no action can change were known (lasting ones,
+        kept by the loop), the facts it learned of the kinds after which the task planner found no plan:
+        REPEAT_LIMIT such ends in a row with the same facts, each epoch with new samples, end the run (what
+        sampling could change did not)."""
         self.epoch_attempts.append(self.attempts)
+        same = dead_end is not None and dead_end == self.last_end
+        self.same_ends, self.last_end = (self.same_ends + 1 if same else 0), dead_end
         signature = (tuple(plan), tuple(self.signature))
         self.repeats = self.repeats + 1 if signature == self.last_signature else 0
         self.last_signature = signature
@@ -81,6 +88,10 @@ class ProgressWatch:
             repeating = self.repeats + 1 >= REPEAT_LIMIT
             if common and (repeating or len(recent) >= BARREN_LIMIT):
                 raise NoProgress(f"no progress in {len(self.barren)} resets in a row: " + "; ".join(sorted(common)))
+            if self.same_ends + 1 >= REPEAT_LIMIT:
+                shown = ", ".join(sorted(dead_end)[:6]) + (", ..." if len(dead_end) > 6 else "")
+                raise NoProgress(f"{REPEAT_LIMIT} epochs in a row, each with new samples, ended in the same dead end: "
+                                 f"the task planner found no plan once it had learned {shown or 'no fact besides the lasting ones'}")
             if repeating:
                 raise NoProgress(f"the reset cycle repeats the same state: {REPEAT_LIMIT} epochs in a row tried the same "
                                  f"candidates with the same outcomes (do the pose generators use the rng they are "

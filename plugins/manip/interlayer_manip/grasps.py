@@ -166,21 +166,56 @@ def goal_needs(problem, obj) -> bool:
 
 def check_hand_fits(problem, world, obj):
     """Raise Infeasible when the goal needs ``obj`` moved but every grasp of it where it stands puts the
-    hand, opened only as wide as the grasp needs, into a fixed obstacle (whatever the arm and base do:
-    fixed obstacles never move). Boxes only (their grasps are finitely many), objects not riding on an
-    articulated body; called when a pick generator found nothing, to say why."""
+    hand into a fixed obstacle (``hand_blockers``); called when a pick generator found nothing, to say why."""
+    if not goal_needs(problem, obj):
+        return
+    why = no_grasp_fits(problem, world, obj)
+    if why:
+        raise Infeasible(f"{why}, and the goal needs {obj} moved")
+
+
+def no_grasp_fits(problem, world, obj) -> str:
+    """The sentence saying why no grasp of ``obj`` can ever be taken where it stands (``hand_blockers``), or ""."""
+    geometry = problem.geometry
+    blockers = hand_blockers(problem, world, obj)
+    if not blockers:
+        return ""
+    padded = f"; planning keeps {geometry.line_padding * 100:.1f} cm from fixed obstacles at a grasp" if geometry.line_padding else ""
+    return (f"every grasp of {obj} that fits the gripper puts the {geometry.robot.description.name}'s fingers into "
+            f"{', '.join(blockers)} where {obj} stands (the gripper opened only {OPEN_CLEARANCE * 100:.0f} cm wider than "
+            f"{obj}{padded})")
+
+
+def hand_blockers(problem, world, obj) -> tuple:
+    """The fixed obstacles that the hand, opened only as wide as the grasp needs, meets at every grasp of
+    ``obj`` where it stands, whatever the arm and base do (fixed obstacles never move); () when some grasp
+    is clear of them or nothing is proved. Boxes only (their grasps are finitely many), objects not riding
+    on an articulated body nor held. A function of obj's pose and the fixed world: computed once per pose."""
     geometry = problem.geometry
     o = geometry.specs[obj]
-    if o.shape != "box" or not goal_needs(problem, obj) or obj in world.riders or world.holder(obj) is not None:
-        return
-    rng = np.random.default_rng(0)
+    if o.shape != "box" or obj in world.riders or world.holder(obj) is not None:
+        return ()
     P = world.objects[obj]
+    memo = geometry.__dict__.setdefault("_hand_blockers", {})
+    # what else the verdict reads: the robot's base where it decides the grasp's base (top grasps, a fixed
+    # base), the articulated bodies' joints (a drawer's front is a fixed obstacle)
+    base = world.base if "top" in _problem_grasps(problem, obj) or not geometry.robot.mobile else None
+    key = (obj, tuple(np.round(P[:3, :4].ravel(), 6)), base,
+           tuple(sorted((b, tuple(np.round(v, 6))) for b, v in world.joints.items())))
+    if key not in memo:
+        memo[key] = _hand_blockers(problem, world, obj, P)
+    return memo[key]
+
+
+def _hand_blockers(problem, world, obj, P) -> tuple:
+    geometry = problem.geometry
+    rng = np.random.default_rng(0)
     poses = {}
     for heading in np.linspace(-math.pi, math.pi, 8, endpoint=False):
         for kind, T in grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng, n_side=1):
             poses[tuple(np.round(T[:3, :4].ravel(), 6))] = T
     if not poses:
-        return  # check_graspable names the width
+        return ()  # check_graspable names the width
     ignore = tuple(geometry.fixed) + tuple(world.objects)
     blockers = set()
     robot = geometry.robot
@@ -198,16 +233,13 @@ def check_hand_fits(problem, world, obj):
             found = ((a, geometry.ik(w, a, T, rng, ignore=ignore, gripper=opened)) for a in geometry.robot.arms)
             arm, v = next(((a, v) for a, v in found if v is not None), (None, None))
             if arm is None:
-                return  # not reached even with nothing in the way: no proof
+                return ()  # not reached even with nothing in the way: no proof
             q = geometry.sync(w.with_arm(arm, v).with_gripper(arm, opened))
             hits = {b for a, b in geometry.cw.collision_pairs(q, movables=False) if a in hands[arm] and b in geometry.fixed}
             if not hits:
-                return
+                return ()
             blockers |= hits
-    padded = f"; planning keeps {geometry.line_padding * 100:.1f} cm from fixed obstacles at a grasp" if geometry.line_padding else ""
-    raise Infeasible(f"every grasp of {obj} that fits the gripper puts the {geometry.robot.description.name}'s fingers into {', '.join(sorted(blockers))} "
-                     f"where {obj} stands (the gripper opened only {OPEN_CLEARANCE * 100:.0f} cm wider than {obj}{padded}), "
-                     f"and the goal needs {obj} moved")
+    return tuple(sorted(blockers))
 
 
 def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10, hand_check=False, splits=0):

@@ -19,7 +19,10 @@ obstructions are learned with two arguments. What it adds:
   the other arm as it is), so the verdict holds for that arm while ?o stands where it is, whatever
   other objects do; picking ?o with the other arm (the only way it moves) deletes it, and a reset
   forgets it with every learned fact, to be sampled anew. It lets a goal with a choice (hold any one
-  of a class) turn to another object or arm instead of giving up.
+  of a class) turn to another object or arm instead of giving up. When every grasp of ?o where it
+  stands puts the hand into fixed obstacles (``hand_blockers``, a proof over the finite grasp set of a
+  box), the pick fails as ``ungraspable``: NoGrasp for both arms, a ``lasting`` fact that no reset
+  forgets (?o can only move by a pick), so the task planner proves the goal unreachable if it needs ?o.
 * ``(BadGrasp ?o ?pd)``: the grasp ?o is held with cannot put it at its goal pose ?pd = ``gpfgp_<o>_<arm>``,
   and another grasp could (a failure of kind ``held_grasp``: every goal variant puts the hand into a
   fixed obstacle, and a grasp of another side or kind is clear there). Picking ?o again deletes it, so
@@ -47,6 +50,8 @@ from interlayer.refine import NO_CANDIDATES
 
 SLOTS = 2
 HELD_GRASP = "held_grasp"  # the failure kind of a put-down at the goal that another grasp could do (BadGrasp)
+UNGRASPABLE = "ungraspable"  # the failure kind of a pick of an object that no grasp can take where it stands
+STUCK = "stuck"  # a candidate's value: (objects, sentence) of a put-down that only objects no grasp can move block
 
 
 def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home: bool, go_to: bool = False,
@@ -125,7 +130,8 @@ def pbjson_domain(tops: bool, goal_poses: bool, sinks: bool, stoves: bool, home:
             learn={"obstruction": ("(Obstructs ?blocker ?gp)", "(Obstructs ?blocker2 ?gp2)",
                                    *(("(GoalObstructs ?blocker_at_goal ?gp)", "(GoalObstructs ?blocker2_at_goal ?gp2)")
                                      if goal_poses else ())),
-                   NO_CANDIDATES: ("(NoGrasp ?gp)",), **drive_learn}, pose_generator="pbjson:pick"),
+                   NO_CANDIDATES: ("(NoGrasp ?gp)",), UNGRASPABLE: ("(NoGrasp ?gp)", "(NoGrasp ?gp2)"), **drive_learn},
+            pose_generator="pbjson:pick"),
         ActionSpec(
             name="place",
             parameters=(("?o", it), ("?arm", "arm"), ("?s", "surf"), ("?sl", "slot"), ("?bp", "bpose"), ("?pd", "pdpose")),

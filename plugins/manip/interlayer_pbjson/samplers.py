@@ -26,7 +26,7 @@ from interlayer_clutter.samplers import ClutterSampler, _pose_key, fmt, in_corri
 from interlayer_manip.scene import REST_GAP
 from interlayer_manip.state import PRE_GRASP, RES_BASE, pose4, trans, wrap
 
-from .domain import HELD_GRASP
+from .domain import HELD_GRASP, STUCK, UNGRASPABLE
 from .scene import apart, distance_to, draw_in, inside, polygon_of
 
 GOAL_GAP, OBJECT_GAP = 0.02, 0.01  # m: a put-down keeps this far from another object's goal pose, from an object
@@ -56,6 +56,26 @@ class PBSampler(ClutterSampler):
         if step.action == "place_at_goal":
             return self.place_at_goal(problem, step, world, rng)
         return self.place_on(problem, step, world, rng)
+
+    def pick(self, problem, step, world, rng, limit: int = 5):
+        """Clutter's pick; when it finds nothing and no grasp of the object can ever clear the fixed obstacles
+        where it stands (``no_grasp_fits``), a candidate that fails as UNGRASPABLE with that proof."""
+        from interlayer_manip.grasps import no_grasp_fits
+
+        found = False
+        for cand in super().pick(problem, step, world, rng, limit):
+            found = True
+            yield cand
+        obj, arm = step.args[0], step.args[1]
+        if not found and world.holder(obj) is None and not world.held.get(arm) and self._stuck(problem, world, obj):
+            yield Candidate((), {UNGRASPABLE: no_grasp_fits(problem, world, obj)}, "no grasp")
+
+    @staticmethod
+    def _stuck(problem, world, obj) -> bool:
+        """No grasp of ``obj`` can ever clear the fixed obstacles where it stands (a floor obstacle may be pushed)."""
+        from interlayer_manip.grasps import hand_blockers
+
+        return obj not in problem.geometry.floor_objects and bool(hand_blockers(problem, world, obj))
 
     def place_on(self, problem, step, world, rng, tries: int = 60):
         from interlayer_manip.generators import _putdown
@@ -272,7 +292,7 @@ class PBSampler(ClutterSampler):
                         continue
                     base, P, T, lower, back, hit, sweep = tried
                     hit |= overlap["hits"]  # objects where it is put
-                    found.append(((len(hit), len(sweep)), rank, base, x, y, P, T, lower, back))
+                    found.append(((len(hit), len(sweep)), rank, base, x, y, P, T, lower, back, hit))
                     break
                 if len(found) >= limit or (found and found[-1][0] == (0, 0) and len(found) >= 2):
                     break
@@ -288,7 +308,17 @@ class PBSampler(ClutterSampler):
                 # (reachmap.behind), or a grasp judged to fit there would find no put-down (sink_stove_4_40)
                 search([s for s in spots[:3 * limit] if s[3] is not None], 3 * per_spot, z, off_line=True)
         found.sort(key=lambda f: (f[0], f[1]))
-        for nhit, _, base, x, y, P, T, lower, back in found:
+        # a put-down whose lowering or retreat meets an object that no grasp can ever move (no_grasp_fits) never
+        # succeeds: not offered. If that leaves none, one that fails at once naming those objects (the task
+        # planner learns PDObstructs without the transit that leads there)
+        stuck = {o for f in found for o in f[9] if self._stuck(problem, world, o)}
+        kept = [f for f in found if not f[9] & stuck]
+        if found and not kept:
+            objs = tuple(sorted(set.union(*(f[9] & stuck for f in found))))
+            yield Candidate((), {STUCK: (objs, f"put-down: every one found meets {', '.join(objs)}, which no grasp "
+                                               f"can move")}, "blocked put-down")
+            return
+        for nhit, _, base, x, y, P, T, lower, back, _ in kept:
             yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])),
                             {bp_ref: list(base), pd_ref: T.tolist(), "tloc": (obj, P), "object_pose": P.tolist()},
                             f"{obj} at {fmt((x, y))} from base {fmt(base)} ({nhit[0]} + {nhit[1]} objects in the way)")

@@ -22,7 +22,7 @@ from interlayer_manip.validate import upright
 from interlayer_manip.state import PADDING, RES_BASE, _failure, _holding, pose4, trans, wrap
 from interlayer_manip.world import ManipulationGeometry
 
-from .domain import HELD_GRASP
+from .domain import HELD_GRASP, STUCK, UNGRASPABLE
 from .scene import ON_TOL, inside, tops
 
 HOME_TOL = 1e-3  # m / rad: the robot is back at its start configuration
@@ -206,6 +206,14 @@ class PBGeometry(ManipulationGeometry):
     def _refine_step(self, step, world, candidate, motion) -> StepOutcome:
         if HELD_GRASP in candidate.values:  # the put-down generator's verdict: only another grasp fits the goal pose
             return StepOutcome(False, failure=Failure(HELD_GRASP, (), candidate.values[HELD_GRASP]))
+        if STUCK in candidate.values:  # the put-down generator's: every put-down it found meets those objects
+            # static: no earlier step can move them; backtracking would only re-pick the held object (its
+            # other grasps are sampled again in the next epoch)
+            objs, why = candidate.values[STUCK]
+            return StepOutcome(False, failure=Failure("obstruction", objs, why, static=True))
+        if UNGRASPABLE in candidate.values:  # the pick generator's proof: no grasp clears the fixed obstacles
+            return StepOutcome(False, failure=Failure(UNGRASPABLE, (), candidate.values[UNGRASPABLE], static=True,
+                                                      lasting=True))
         acc = [0.0]
         try:
             drives = step.action in ("go_home", "go_to", "push") or (
