@@ -112,15 +112,15 @@ def _pitched_depth(robot, radius: float, height: float, pitch: float):
         return next((d for d in (0.06, 0.05, 0.04, 0.03, 0.02) if d < height / 2 and not any(
             cw.hand_collides(q, a, trans(0, 0, height / 2 - d) @ ry(pitch), movables=True) for a in robot.arms)), None)
 
-    return _measured_once(robot, ("pitched_depth", round(radius, 6), round(height, 6), pitch), measure)
+    return once(robot, ("pitched_depth", round(radius, 6), round(height, 6), pitch), measure)
 
 
-def _measured_once(robot, key, measure):
-    """``measure()``, kept on the robot under ``key``: a hand measurement that depends on the robot and an
-    object's size only."""
-    known = robot.__dict__.setdefault("_hand_measurements", {})
+def once(owner, key, compute):
+    """``compute()``, kept on ``owner`` under ``key``: for what depends only on the owner (a robot, a run's
+    geometry) and the key."""
+    known = owner.__dict__.setdefault("_once", {})
     if key not in known:
-        known[key] = measure()
+        known[key] = compute()
     return known[key]
 
 
@@ -196,15 +196,12 @@ def hand_blockers(problem, world, obj) -> tuple:
     if o.shape != "box" or obj in world.riders or world.holder(obj) is not None:
         return ()
     P = world.objects[obj]
-    memo = geometry.__dict__.setdefault("_hand_blockers", {})
     # what else the verdict reads: the robot's base where it decides the grasp's base (top grasps, a fixed
     # base), the articulated bodies' joints (a drawer's front is a fixed obstacle)
     base = world.base if "top" in _problem_grasps(problem, obj) or not geometry.robot.mobile else None
-    key = (obj, tuple(np.round(P[:3, :4].ravel(), 6)), base,
+    key = ("hand_blockers", obj, tuple(np.round(P[:3, :4].ravel(), 6)), base,
            tuple(sorted((b, tuple(np.round(v, 6))) for b, v in world.joints.items())))
-    if key not in memo:
-        memo[key] = _hand_blockers(problem, world, obj, P)
-    return memo[key]
+    return once(geometry, key, lambda: _hand_blockers(problem, world, obj, P))
 
 
 def _hand_blockers(problem, world, obj, P) -> tuple:
@@ -365,4 +362,4 @@ def seat(robot, radius: float, height: float) -> float:
         return next((b for b in steps if not any(cw.hand_collides(q, a, trans(-b, 0, 0), movables=True)
                                                  for a in robot.arms)), 0.0)
 
-    return _measured_once(robot, ("seat", round(radius, 6), round(height, 6)), measure)
+    return once(robot, ("seat", round(radius, 6), round(height, 6)), measure)

@@ -16,13 +16,13 @@ from __future__ import annotations
 
 import itertools
 import math
-import weakref
 from contextlib import nullcontext
 from dataclasses import replace
 
 import numpy as np
 from interlayer.refine import Candidate, GiveUp
 from interlayer_clutter.samplers import ClutterSampler, _pose_key, fmt, in_corridors, putdown_motion
+from interlayer_manip.grasps import once
 from interlayer_manip.scene import REST_GAP
 from interlayer_manip.state import PRE_GRASP, RES_BASE, pose4, trans, wrap
 
@@ -95,9 +95,7 @@ class PBSampler(ClutterSampler):
         poly, top = found
         if self._goal_only(geometry, obj, surf):
             # fixed obstacles alone decide it: asked once per run
-            why = _NO_PUTDOWN.setdefault(geometry, {}).get((obj, surf))
-            if why is None:
-                why = _NO_PUTDOWN[geometry][(obj, surf)] = no_putdown(problem, world, obj, surf)
+            why = once(geometry, ("no_putdown", obj, surf), lambda: no_putdown(problem, world, obj, surf))
             if why:  # the goal needs a put-down this planner cannot make: epoch after epoch would search in vain
                 raise GiveUp(why)
         G = world.held[arm][1]
@@ -150,11 +148,11 @@ class PBSampler(ClutterSampler):
             return
         # none: the grid's poses where the held grasp can be let go (putdown_grid), rare ones where the hand fits
         # only at some yaws (between posts), which the random spots, their yaw set by the base's bearing, miss
-        key = (obj, surf, arm, tuple(np.round(G[:3, :4].ravel(), 4)))
-        grid = _GRID_FITS.setdefault(geometry, {}).get(key)
-        if grid is None:  # fixed obstacles alone decide it: once per run
+        def spread():  # fixed obstacles alone decide it: once per run
             fits = [P for P, _, _ in itertools.islice(putdown_grid(problem, world, obj, surf, [G], [arm]), 8 * GRID_SPOTS)]
-            grid = _GRID_FITS[geometry][key] = fits[::max(1, len(fits) // GRID_SPOTS)][:GRID_SPOTS]
+            return fits[::max(1, len(fits) // GRID_SPOTS)][:GRID_SPOTS]
+
+        grid = once(geometry, ("putdown_grid", obj, surf, arm, tuple(np.round(G[:3, :4].ravel(), 4))), spread)
         yield from self._putdowns(problem, world, obj, arm, step.args[4], step.args[5],
                                   [(float(P[0, 3]), float(P[1, 3]), lambda h, P=P: P, None, True) for P in grid], z, rng)
 
@@ -404,8 +402,6 @@ PUT_GRID, PUT_TURN = 0.0125, math.radians(5)  # m, rad: putdown_grid's object po
 # reaches such a pose from few: real_regrasp, 2 % of the reach map's bases)
 GRID_SPOTS, GRID_TRIES = 12, 24
 TALL = 0.3  # m: a vertical lowering and retreat (vertical_putdown) lift the hand over posts this much above the spot
-_NO_PUTDOWN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # geometry -> {(obj, surf): no_putdown's answer}
-_GRID_FITS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # geometry -> {(obj, surf, arm, grasp): poses}
 
 
 def _grasps_of(problem, obj, z) -> list:
