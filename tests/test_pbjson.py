@@ -1062,3 +1062,41 @@ def test_a_goal_region_that_only_an_object_no_grasp_can_move_fills_gives_up_nami
     failed = [e["failure"]["detail"] for e in result.trace.events if e["type"] == "failure" and e["action"].startswith("place")]
     assert failed and set(failed) == {"put-down: every one found meets a, which no grasp can move"}, failed
     assert "every grasp of a that fits the gripper puts the PR2's fingers into wall " in result.reason, result.reason
+
+
+def test_a_blocked_pick_learns_what_blocks_the_picks_of_its_blockers(tmp_path):
+    """Issue 20 (rearrangement_18): a pick blocked by s made the task planner pick s next, which failed on
+    what blocks s, and so on: one replan per link of a chain of blockers. The failure now names, for each
+    blocker and each arm, what is in the way of the best grasp the pick generator offers for it in the same
+    world (Failure.related), and the templates learn them as Obstructs facts about that blocker's grasp
+    references (TaskModel.step_with names them). Here t stands between k1 and s; s's best grasps have k2 and
+    k5 in the way (rows_of_blocks).
+    Mutations: PBSampler.pick without the "chain" value (no related failure); translate_by_templates
+    without its related loop (no fact about s's grasps)."""
+    from interlayer.abstraction import abstract
+    from interlayer.builtin import translate_by_templates
+    from interlayer.domain import GroundStep
+    from interlayer.refine import stable_seed
+    from interlayer_pbjson.samplers import PBSampler
+
+    rows_of_blocks(tmp_path)
+    data = json.loads((tmp_path / "scene.json").read_text())
+    data["bodies"].append(_body("t", (0.0, 0.0, 0.701), [_box((0.06, 0.02, 0.04), (0, 0, 0.04))]))
+    data["task"]["object_names"].append("t")
+    p = load(tmp_path, data, "chain.json")
+    g, w, m = p.geometry, p.geometry.initial_world(), abstract(p)
+    step = GroundStep("pick", ("t", "left", "right", "bpfg_t_left", "gpfg_t_left", "gpfg_t_right"))
+    assert m.step_with(step, {"?o": "s", "?arm": "right", "?arm2": "left"}) == GroundStep(
+        "pick", ("s", "right", "left", "bpfg_s_right", "gpfg_s_right", "gpfg_s_left"))
+    with pytest.raises(KeyError, match="no parameter"):
+        m.step_with(step, {"?x": "s"})
+    cand = next(iter(PBSampler(stable_seed(0, 0, PBSampler.__qualname__))(p, step, w, None)))
+    failure = g.refine_step(step, w, cand, None).failure
+    assert failure.kind == "obstruction" and "s" in failure.objects
+    assert "related" not in failure.to_json()  # found when translated, not at every failed attempt
+    related = failure.to_json(related=True)["related"]
+    assert {(r["with"]["?o"], r["with"]["?arm"]): set(r["objects"]) for r in related} == {
+        ("s", "left"): {"k2", "k5"}, ("s", "right"): {"k2", "k5"}}
+    facts = translate_by_templates(failure, step, m)
+    assert {("Obstructs", b, f"gpfg_s_{arm}") for b in ("k2", "k5") for arm in ("left", "right")} <= facts
+    assert {("Obstructs", b, "gpfg_t_left") for b in failure.objects} <= facts

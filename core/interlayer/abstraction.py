@@ -74,6 +74,22 @@ class TaskModel:
         params, _, _ = self.full_actions[step.action]
         return {v: a for (v, _), a in zip(params, step.args)}
 
+    def step_with(self, step: GroundStep, objects: dict) -> GroundStep:
+        """``step``'s action with some object parameters bound otherwise (``{"?o": "b2"}``) and every
+        reference parameter defined by a Skolem atom over them renamed to match (``gp_b1`` -> ``gp_b2``)."""
+        params, pre, _ = self.full_actions[step.action]
+        unknown = set(objects) - {v for v, _ in params}
+        if unknown:
+            raise KeyError(f"action {step.action} has no parameter {', '.join(sorted(unknown))}")
+        binding = {**self.binding(step), **objects}
+        skolem_preds = {key[0] for key in self.reference_of}
+        for p, _ in logic.atoms_with_polarity(pre):
+            if p.name in skolem_preds and p.args and p.args[0] in binding:
+                ref = self.reference_of.get((p.name, *(binding.get(a, a) for a in p.args[1:])))
+                if ref is not None:
+                    binding[p.args[0]] = ref
+        return GroundStep(step.action, tuple(binding[v] for v, _ in params))
+
     def applicable(self, state: frozenset, step: GroundStep) -> bool:
         _, pre, _ = self.full_actions[step.action]
         return logic.holds(pre, state, self.binding(step), self.objects_of)

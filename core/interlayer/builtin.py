@@ -33,7 +33,8 @@ def translate_by_templates(failure, step, model):
     """Turn a failure into the facts its action declares in ``learn[kind]`` (e.g. Obstructs): one per
     object bound to the template's ``?blocker...`` variable (``?blocker``: the failure's objects; others:
     ``failure.also``), or one fact for a template without such a variable. A negated template
-    (``(not (Reachable ?p))``) gives ``logic.negated`` facts: the loop deletes them from the state."""
+    (``(not (Reachable ?p))``) gives ``logic.negated`` facts: the loop deletes them from the state. The
+    failure's ``related`` failures (the same action with other objects) are translated alike."""
     spec = model.problem.domain.action(step.action)
     templates = spec.learn.get(failure.kind, ())
     binding = model.binding(step)
@@ -53,6 +54,8 @@ def translate_by_templates(failure, step, model):
             continue
         for blocker in failure.objects if var == "?blocker" else also.get(var, ()):
             facts.add(fact(dict(binding, **{var: blocker})))
+    for objects, other in failure.related_failures() if templates else ():
+        facts |= translate_by_templates(other, model.step_with(step, objects), model)
     return facts
 
 

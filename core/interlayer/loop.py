@@ -331,7 +331,7 @@ class InterfaceLayer:
                 self.learned += [a for a in facts if a not in self.learned]
                 self.times_learned.update(facts)
                 self.trace.emit("failure", step=f, action=str(self.plan[f]), candidate=partial.candidate.label,
-                                failure=partial.failure.to_json(), facts=shown, world=self.geometry.snapshot(partial.world))
+                                failure=partial.failure.to_json(related=True), facts=shown, world=self.geometry.snapshot(partial.world))
                 new_plan = self.call_task_planner(state, f)  # line 10
                 if new_plan is not None:  # lines 11-13
                     self.replans += 1

@@ -43,14 +43,25 @@ class Failure:
     # the other arm's best grasp of the object a pick failed on), or a function giving them: called only
     # when the failure is translated (the partial pass), not for every failed attempt
     also: Mapping[str, tuple] | Callable[[], Mapping[str, tuple]] = field(default_factory=dict, compare=False)
+    # failures of the same action with other objects ({parameter: object}, Failure) that the geometry found
+    # in the failing step's world without refining them (e.g. what blocks picking each object in the way):
+    # translated too (TaskModel.step_with names their references), so that one replan learns a chain of
+    # blockers; or a function giving them, called when the failure is translated
+    related: tuple | Callable[[], tuple] = field(default=(), compare=False)
 
     def also_objects(self) -> Mapping[str, tuple]:
         return self.also() if callable(self.also) else self.also
 
-    def to_json(self) -> dict:
+    def related_failures(self) -> tuple:
+        return self.related() if callable(self.related) else self.related
+
+    def to_json(self, related: bool = False) -> dict:
+        """With ``related``, the related failures too (computed if they are a function: a translated failure's)."""
         out = {"kind": self.kind, "objects": list(self.objects), "detail": self.detail}
         if self.also and not callable(self.also):
             out["also"] = {k: list(v) for k, v in self.also.items()}
+        if self.related and (related or not callable(self.related)):
+            out["related"] = [{"with": dict(objs), **f.to_json()} for objs, f in self.related_failures()]
         return out
 
 

@@ -176,12 +176,30 @@ class ClutterSampler(EpochState):
         other = next((a for a in problem.geometry.robot.arms if a != arm), None)
         if other is None:  # a one-armed robot: no other arm to ask about
             return None
-        free = _hand_emptied(problem.geometry, world, other) if world.held.get(other) else world
-        ranked = self.ranked_grasps(problem, free, obj, other)
+        found = self.best_blocked(problem, world, obj, other)
+        return found and (other, *found)
+
+    def best_blocked(self, problem, world, obj, arm):
+        """(base, approach, world to check it in or None) of arm's best grasp of obj when every one of its
+        grasps has objects in the way; else None. An arm that holds an object is asked as it will be once
+        it has put that down: out of the way, the arm tucked."""
+        free = _hand_emptied(problem.geometry, world, arm) if world.held.get(arm) else world
+        if obj not in free.objects:
+            return None
+        ranked = self.ranked_grasps(problem, free, obj, arm)
         if not ranked or not ranked[0][0][0]:
             return None
         _, _, base, _, _, wps, _ = ranked[0]
-        return other, base, wps[0], None if free is world else free
+        return base, wps[0], None if free is world else free
+
+    def chain(self, problem, world):
+        """``best_blocked`` in ``world`` as a function of (object, arm), the same function for the same
+        world (candidates carrying it compare equal): what a failed step's blockers' own picks meet
+        (ManipulationGeometry.approach_blocked learns it with the failure)."""
+        key = ("chain", id(world))
+        if self.lookaheads.get(key, (None,))[0] is not world:
+            self.lookaheads[key] = (world, functools.partial(self.best_blocked, problem, world))
+        return self.lookaheads[key][1]
 
     def grasp_candidates(self, problem, world, obj, arm, tries: int = 40):
         """(base, kind, T, waypoints, tool xy path) candidates for picking obj with arm where it stands;

@@ -11,6 +11,9 @@ from interlayer.refine import Failure, StepOutcome
 
 from .state import rz, trans
 
+# how many links of a chain of blockers a blocked pick learns at once (Reach.blocker_chain): the blockers'
+# own blockers, and theirs
+CHAIN_DEPTH = 2
 MIRRORED = np.diag([1.0, -1.0, -1.0, 1.0])  # a tool pose rolled half a turn about its x (approach) axis
 
 
@@ -103,8 +106,49 @@ class Reach:
                 more = self._approach_blockers(elsewhere or world, obj, other, base, approach, [0.0])
             return {"?blocker2": more} if more else {}
 
+        chain = cand.values.get("chain")
         return StepOutcome(False, failure=Failure("obstruction", blockers, "pick approach: blocked by " + ", ".join(blockers),
-                                                  also=also if look is not None else {}))
+                                                  also=also if look is not None else {},
+                                                  related=self.blocker_chain(world, obj, blockers, chain) if chain else ()))
+
+    def blocker_chain(self, world, obj, blockers, chain, depth: int = CHAIN_DEPTH):
+        """``Failure.related`` of a pick of obj that ``blockers`` block, as a function called once: for each
+        blocker (then each of theirs, ``depth`` links deep) and each arm, the objects on the approach of
+        that arm's best grasp of it in ``world`` (``chain(object, arm)``: (base, approach, world or None) or
+        None when it is clear, see ClutterSampler.best_blocked), as a failure of picking it with that arm.
+        Those are the picks the task planner tries next to clear the way, one replan per link otherwise;
+        the facts hold of the grasps the pick generator offers first in this world."""
+        memo = []
+
+        def related():
+            if memo:
+                return memo[0]
+            arms = tuple(self.robot.arms)
+            out, seen, frontier = [], {obj}, list(blockers)
+            for _ in range(depth):
+                nxt = []
+                for b in dict.fromkeys(frontier):
+                    if b in seen:
+                        continue
+                    seen.add(b)
+                    for arm in arms:
+                        with self.stats.timer("pose_generation"):
+                            found = chain(b, arm)
+                        if found is None:
+                            continue
+                        base, approach, elsewhere = found
+                        with self.stats.timer("collision_checking"):
+                            hits = self._approach_blockers(elsewhere or world, b, arm, base, approach, [0.0])
+                        if hits:
+                            other = [a for a in arms if a != arm]
+                            out.append(({"?o": b, "?arm": arm, **({"?arm2": other[0]} if other else {})},
+                                        Failure("obstruction", hits, "pick approach: blocked by " + ", ".join(hits))))
+                            nxt += hits
+                frontier = nxt
+            memo.append(tuple(out))
+            return memo[0]
+
+        return related
 
     def _approach_blockers(self, world, obj, arm, base, approach, acc) -> tuple:
         """The movable objects (obj aside) the arm's ``approach`` from ``base`` touches, sorted."""

@@ -63,9 +63,11 @@ class PBSampler(ClutterSampler):
         from interlayer_manip.grasps import no_grasp_fits
 
         found = False
+        chain = self.chain(problem, world)
         for cand in super().pick(problem, step, world, rng, limit):
             found = True
-            yield cand
+            # a blocked pick learns its blockers' own blockers too (Reach.blocker_chain)
+            yield replace(cand, values={**cand.values, "chain": chain})
         obj, arm = step.args[0], step.args[1]
         if not found and world.holder(obj) is None and not world.held.get(arm) and self._stuck(problem, world, obj):
             yield Candidate((), {UNGRASPABLE: no_grasp_fits(problem, world, obj)}, "no grasp")

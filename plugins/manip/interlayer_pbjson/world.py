@@ -201,7 +201,11 @@ class PBGeometry(ManipulationGeometry):
             more = {"?blocker_at_goal": at_goal(f.objects), "?blocker2_at_goal": at_goal(found.get("?blocker2", ()))}
             return {**found, **{k: v for k, v in more.items() if v}}
 
-        return replace(out, failure=replace(f, also=also))
+        def related():  # the chain of blockers' picks (Reach.blocker_chain): their blockers at goal alike
+            return tuple((objs, replace(g, also={"?blocker_at_goal": at_goal(g.objects)}) if at_goal(g.objects) else g)
+                         for objs, g in f.related_failures())
+
+        return replace(out, failure=replace(f, also=also, related=related if f.related else ()))
 
     def _refine_step(self, step, world, candidate, motion) -> StepOutcome:
         if HELD_GRASP in candidate.values:  # the put-down generator's verdict: only another grasp fits the goal pose
