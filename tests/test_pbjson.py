@@ -1100,3 +1100,36 @@ def test_a_blocked_pick_learns_what_blocks_the_picks_of_its_blockers(tmp_path):
     facts = translate_by_templates(failure, step, m)
     assert {("Obstructs", b, f"gpfg_s_{arm}") for b in ("k2", "k5") for arm in ("left", "right")} <= facts
     assert {("Obstructs", b, "gpfg_t_left") for b in failure.objects} <= facts
+
+
+def test_a_pick_blocked_by_an_object_a_put_down_set_there_makes_that_put_down_wait(tmp_path):
+    """Issue 20 (rearrangement_18): the plan put block1-0 down at table slot s1, right in the approach of
+    block1-5's pick; the task planner learned (Obstructs block1-0 gp), picked block1-0 again and put it at s1
+    again, until the fact recurred and the epoch was reset at 60 s. A blocked pick now names, for each blocker
+    that a put-down of this epoch set where it stands, that place step as failing on the picked object: the
+    task planner learns (PDObstructs t pd), and the put-down waits until t has been picked.
+    Mutations: PBSampler.pick without the "put_by" value; PBSampler._noted recording nothing."""
+    from interlayer.abstraction import abstract
+    from interlayer.builtin import translate_by_templates
+    from interlayer.domain import GroundStep
+    from interlayer.refine import Candidate, stable_seed
+    from interlayer_pbjson.samplers import PBSampler
+
+    rows_of_blocks(tmp_path)
+    data = json.loads((tmp_path / "scene.json").read_text())
+    data["bodies"].append(_body("t", (0.0, 0.0, 0.701), [_box((0.06, 0.02, 0.04), (0, 0, 0.04))]))
+    data["task"]["object_names"].append("t")
+    p = load(tmp_path, data, "chain.json")
+    g, w, m = p.geometry, p.geometry.initial_world(), abstract(p)
+    sampler = PBSampler(stable_seed(0, 0, PBSampler.__qualname__))
+    # a put-down candidate of this place step sets s where it stands (the world after that step)
+    place = GroundStep("place", ("s", "right", "table", "s1", "bpfpd_s_right_table_s1", "gpfpd_s_right_table_s1"))
+    offered = [Candidate((), {"object_pose": w.objects["s"].tolist()})]
+    assert list(sampler._noted(place, offered)) == offered and sampler.put_by("s", w.objects["s"]) == place
+    step = GroundStep("pick", ("t", "left", "right", "bpfg_t_left", "gpfg_t_left", "gpfg_t_right"))
+    failure = g.refine_step(step, w, next(iter(sampler(p, step, w, None))), None).failure
+    assert "s" in failure.objects
+    assert [r["step"] for r in failure.to_json(related=True)["related"] if "step" in r] == [place.to_json()]
+    facts = translate_by_templates(failure, step, m)
+    assert ("PDObstructs", "t", "gpfpd_s_right_table_s1") in facts
+    assert ("PDObstructs", "t", "gpfpd_s_right_table_s1") not in m.progress(m.init | facts, step)  # t picked: no wait

@@ -1,6 +1,7 @@
 """Built-in components: the breadth-first task planner, the interpolating motion planner and the template
 failure translator."""
 from . import hookimpl, logic
+from .domain import GroundStep
 
 
 @hookimpl
@@ -55,7 +56,8 @@ def translate_by_templates(failure, step, model):
         for blocker in failure.objects if var == "?blocker" else also.get(var, ()):
             facts.add(fact(dict(binding, **{var: blocker})))
     for objects, other in failure.related_failures() if templates else ():
-        facts |= translate_by_templates(other, model.step_with(step, objects), model)
+        facts |= translate_by_templates(other, objects if isinstance(objects, GroundStep) else model.step_with(step, objects),
+                                        model)
     return facts
 
 

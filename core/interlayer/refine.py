@@ -43,10 +43,11 @@ class Failure:
     # the other arm's best grasp of the object a pick failed on), or a function giving them: called only
     # when the failure is translated (the partial pass), not for every failed attempt
     also: Mapping[str, tuple] | Callable[[], Mapping[str, tuple]] = field(default_factory=dict, compare=False)
-    # failures of the same action with other objects ({parameter: object}, Failure) that the geometry found
-    # in the failing step's world without refining them (e.g. what blocks picking each object in the way):
-    # translated too (TaskModel.step_with names their references), so that one replan learns a chain of
-    # blockers; or a function giving them, called when the failure is translated
+    # failures of the same action with other objects ({parameter: object}, Failure), or of another step
+    # (GroundStep, Failure), that the geometry found in the failing step's world without refining them (e.g.
+    # what blocks picking each object in the way; the earlier put-down that set a blocker there): translated
+    # too (TaskModel.step_with names the references), so that one replan learns a chain of blockers; or a
+    # function giving them, called when the failure is translated
     related: tuple | Callable[[], tuple] = field(default=(), compare=False)
 
     def also_objects(self) -> Mapping[str, tuple]:
@@ -61,7 +62,8 @@ class Failure:
         if self.also and not callable(self.also):
             out["also"] = {k: list(v) for k, v in self.also.items()}
         if self.related and (related or not callable(self.related)):
-            out["related"] = [{"with": dict(objs), **f.to_json()} for objs, f in self.related_failures()]
+            out["related"] = [{**({"step": objs.to_json()} if isinstance(objs, GroundStep) else {"with": dict(objs)}), **f.to_json()}
+                              for objs, f in self.related_failures()]
         return out
 
 

@@ -743,8 +743,8 @@ class _Explainer:
         if objs:
             text.append("<div>obstructed by: " + ", ".join(f'<b style="color:#c9302c">{escape(self.shown(o))}</b>' for o in objs) + "</div>")
         for r in f.get("related") or ():  # the same action with other objects, found in the same world (Failure.related)
-            args = ", ".join(str(v) for v in (r.get("with") or {}).values())
-            text.append(f'<div>also: {escape(self.shown(e.get("action", "").split("(")[0] + "(" + args + ", ...)"))} - '
+            st = r.get("step") or {"action": e.get("action", "").split("(")[0], "args": [*(r.get("with") or {}).values(), "..."]}
+            text.append(f'<div>also: {escape(self.shown(st["action"] + "(" + ", ".join(map(str, st["args"])) + ")"))} - '
                         f'{escape(self.shown(r.get("detail") or r.get("kind") or ""))}</div>')
         text.append("<div>learned: " + (", ".join(f'<span class="fact">{escape(self.shown(x))}</span>' for x in facts) or "nothing")
                     + "</div><div class=muted>The task planner now plans from the state before this step with these facts (a (not ...) fact is deleted).</div>")

@@ -42,6 +42,7 @@ class PBSampler(ClutterSampler):
         # (obj, arm) -> (obj's pose key, {other object: (its pose key, whether it was in the way of obj's best grasp)}),
         # from the last ranking of obj's grasps in which the other object stood there
         self.best_hits: dict = {}
+        self.put: dict = {}  # (object, its pose key) -> the place step whose put-down candidate sets it there
 
     @staticmethod
     def _goal_only(geometry, obj, surf) -> bool:
@@ -55,7 +56,17 @@ class PBSampler(ClutterSampler):
             return self.pick(problem, step, world, rng)
         if step.action == "place_at_goal":
             return self.place_at_goal(problem, step, world, rng)
-        return self.place_on(problem, step, world, rng)
+        return self._noted(step, self.place_on(problem, step, world, rng))
+
+    def _noted(self, step, cands):
+        for cand in cands:
+            if "object_pose" in cand.values:
+                self.put[(step.args[0], _pose_key(cand.values["object_pose"]))] = step
+            yield cand
+
+    def put_by(self, obj, P):
+        """The place step (this epoch's) whose put-down sets obj at pose P, or None."""
+        return self.put.get((obj, _pose_key(P)))
 
     def pick(self, problem, step, world, rng, limit: int = 5):
         """Clutter's pick; when it finds nothing and no grasp of the object can ever clear the fixed obstacles
@@ -67,7 +78,7 @@ class PBSampler(ClutterSampler):
         for cand in super().pick(problem, step, world, rng, limit):
             found = True
             # a blocked pick learns its blockers' own blockers too (Reach.blocker_chain)
-            yield replace(cand, values={**cand.values, "chain": chain})
+            yield replace(cand, values={**cand.values, "chain": chain, "put_by": self.put_by})
         obj, arm = step.args[0], step.args[1]
         if not found and world.holder(obj) is None and not world.held.get(arm) and self._stuck(problem, world, obj):
             yield Candidate((), {UNGRASPABLE: no_grasp_fits(problem, world, obj)}, "no grasp")

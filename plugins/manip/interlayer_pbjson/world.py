@@ -181,7 +181,23 @@ class PBGeometry(ManipulationGeometry):
         return None
 
     def refine_step(self, step, world, candidate, motion) -> StepOutcome:
-        return self._goal_blockers(world, self._refine_step(step, world, candidate, motion))
+        out = self._goal_blockers(world, self._refine_step(step, world, candidate, motion))
+        put_by = candidate.values.get("put_by")
+        if step.action != "pick" or put_by is None or out.ok or out.failure is None or out.failure.kind != "obstruction":
+            return out
+        return replace(out, failure=replace(out.failure, related=self._put_in_the_way(step.args[0], world, out.failure, put_by)))
+
+    @staticmethod
+    def _put_in_the_way(obj, world, f, put_by):
+        """``f.related`` and, for each blocker that a put-down of this epoch set where it stands, that place step
+        failing on obj: the task planner learns (PDObstructs obj pd), so that the put-down waits until obj has
+        been picked, instead of setting the blocker down in its way again (rearrangement_18: the same put-down
+        in front of the same pick, until the epoch was reset)."""
+        def related():
+            placed = [(b, put_by(b, world.objects[b])) for b in f.objects if b in world.objects]
+            return (*f.related_failures(), *((s, Failure("obstruction", (obj,), f"put-down: sets {b} in the way of picking {obj}"))
+                                            for b, s in placed if s is not None))
+        return related
 
     def _goal_blockers(self, world, out) -> StepOutcome:
         """An obstruction naming objects that stand at their goal poses also names them as ``?blocker_at_goal``
