@@ -1064,6 +1064,16 @@ def test_a_goal_region_that_only_an_object_no_grasp_can_move_fills_gives_up_nami
     assert "every grasp of a that fits the gripper puts the PR2's fingers into wall " in result.reason, result.reason
 
 
+def chain_of_blocks(tmp_path):
+    """rows_of_blocks with an eighth block, t, between k1 and s: t's pick is blocked by s (and k1), and s's by k2
+    and k5."""
+    rows_of_blocks(tmp_path)
+    data = json.loads((tmp_path / "scene.json").read_text())
+    data["bodies"].append(_body("t", (0.0, 0.0, 0.701), [_box((0.06, 0.02, 0.04), (0, 0, 0.04))]))
+    data["task"]["object_names"].append("t")
+    return load(tmp_path, data, "chain.json")
+
+
 def test_a_blocked_pick_learns_what_blocks_the_picks_of_its_blockers(tmp_path):
     """Issue 20 (rearrangement_18): a pick blocked by s made the task planner pick s next, which failed on
     what blocks s, and so on: one replan per link of a chain of blockers. The failure now names, for each
@@ -1079,11 +1089,7 @@ def test_a_blocked_pick_learns_what_blocks_the_picks_of_its_blockers(tmp_path):
     from interlayer.refine import stable_seed
     from interlayer_pbjson.samplers import PBSampler
 
-    rows_of_blocks(tmp_path)
-    data = json.loads((tmp_path / "scene.json").read_text())
-    data["bodies"].append(_body("t", (0.0, 0.0, 0.701), [_box((0.06, 0.02, 0.04), (0, 0, 0.04))]))
-    data["task"]["object_names"].append("t")
-    p = load(tmp_path, data, "chain.json")
+    p = chain_of_blocks(tmp_path)
     g, w, m = p.geometry, p.geometry.initial_world(), abstract(p)
     step = GroundStep("pick", ("t", "left", "right", "bpfg_t_left", "gpfg_t_left", "gpfg_t_right"))
     assert m.step_with(step, {"?o": "s", "?arm": "right", "?arm2": "left"}) == GroundStep(
@@ -1115,11 +1121,7 @@ def test_a_pick_blocked_by_an_object_a_put_down_set_there_makes_that_put_down_wa
     from interlayer.refine import Candidate, stable_seed
     from interlayer_pbjson.samplers import PBSampler
 
-    rows_of_blocks(tmp_path)
-    data = json.loads((tmp_path / "scene.json").read_text())
-    data["bodies"].append(_body("t", (0.0, 0.0, 0.701), [_box((0.06, 0.02, 0.04), (0, 0, 0.04))]))
-    data["task"]["object_names"].append("t")
-    p = load(tmp_path, data, "chain.json")
+    p = chain_of_blocks(tmp_path)
     g, w, m = p.geometry, p.geometry.initial_world(), abstract(p)
     sampler = PBSampler(stable_seed(0, 0, PBSampler.__qualname__))
     # a put-down candidate of this place step sets s where it stands (the world after that step)
