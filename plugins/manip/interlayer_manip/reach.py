@@ -124,7 +124,7 @@ class Reach:
             if memo:
                 return memo[0]
             arms = tuple(self.robot.arms)
-            out, seen, frontier = [], {obj}, list(blockers)
+            out, links, seen, frontier = [], [], {obj}, list(blockers)
             for _ in range(depth):
                 nxt = []
                 for b in dict.fromkeys(frontier):
@@ -140,11 +140,20 @@ class Reach:
                         with self.stats.timer("collision_checking"):
                             hits = self._approach_blockers(elsewhere or world, b, arm, base, approach, [0.0])
                         if hits:
-                            other = [a for a in arms if a != arm]
-                            out.append(({"?o": b, "?arm": arm, **({"?arm2": other[0]} if other else {})},
-                                        Failure("obstruction", hits, "pick approach: blocked by " + ", ".join(hits))))
+                            links.append((b, arm, hits))
                             nxt += hits
                 frontier = nxt
+            # a link that closes a cycle (b's best grasp blocked by an object that waits, through the chain, for
+            # b) is left out: the pick generator offers b's grasps past the objects waiting for b first
+            # (PBSampler.ranked_grasps), and the task planner would see each waiting for the other, a dead end
+            blocked_by = {obj: set(blockers)}
+            for b, _, hits in links:
+                blocked_by.setdefault(b, set()).update(hits)
+            for b, arm, hits in links:
+                if not any(_reaches(blocked_by, h, b) for h in hits):
+                    other = [a for a in arms if a != arm]
+                    out.append(({"?o": b, "?arm": arm, **({"?arm2": other[0]} if other else {})},
+                                Failure("obstruction", hits, "pick approach: blocked by " + ", ".join(hits))))
             memo.append(tuple(out))
             return memo[0]
 
@@ -155,3 +164,16 @@ class Reach:
         w = replace(world, base=tuple(float(v) for v in base))
         w = w.with_gripper(arm, self.grasp_opening(w, arm, obj, approach[-1]))
         return tuple(sorted(self._movables_on_line(w, arm, approach, acc) - {obj}))
+
+
+def _reaches(blocked_by, start, goal) -> bool:
+    """``goal`` is ``start`` or blocks it, directly or through objects that block each other (``blocked_by``)."""
+    todo, seen = [start], set()
+    while todo:
+        o = todo.pop()
+        if o == goal:
+            return True
+        if o not in seen:
+            seen.add(o)
+            todo += blocked_by.get(o, ())
+    return False
