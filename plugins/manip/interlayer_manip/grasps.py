@@ -311,7 +311,8 @@ def _line_step(geometry, world, arm, at, d0, d1, prev, rng, ignore, gripper, spl
     on the way, the halves' (at most ``splits`` times). The joints of a nearly stretched arm move fast
     but continuously, so halving the step halves their move; a jump to another IK branch does not
     shrink. Without the split, side grasps across a table's width failed their approach line."""
-    v = geometry.ik(world, arm, at(d1), rng, ignore=ignore, seed=prev, attempts=2, gripper=gripper, movables=movables)
+    v = geometry.ik(world, arm, at(d1), rng, ignore=ignore, seed=prev, attempts=2, gripper=gripper,
+                    **({"movables": True} if movables else {}))
     if v is None:
         return None
     if geometry.arm_space[arm].distance(v, prev) <= 0.35:
