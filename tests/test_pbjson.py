@@ -1087,8 +1087,8 @@ def test_a_put_down_behind_an_object_no_grasp_can_move_keeps_clear_of_it_and_com
     """panel in small: every put-down of b into the slot that the usual search finds meets e (the straight retreat
     runs into it), and no grasp can move e. The search then keeps clear of e as of a fixed obstacle: IK and the
     lines avoid it (the hand let down over e's top and leaving straight up if the straight lines meet it), the tool
-    turned up to pi/2 from the base's bearing. Mutation: without that search only the put-down naming e ("blocked
-    put-down") is offered."""
+    turned up to pi/2 from the base's bearing. Mutations, each leaving only the put-down naming e ("blocked
+    put-down"): without that search; IK and lines not avoiding e; the lift not just over e's top (none, or TALL)."""
     from interlayer.domain import GroundStep
     from interlayer_clutter.samplers import movables_on
     from interlayer_pbjson.samplers import PBSampler, _grasps_of

@@ -393,10 +393,10 @@ def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None, z=Non
     opened = geometry.opening(obj, G)  # only as wide as the grasp needs
     T = P @ np.linalg.inv(G)
     w = replace(world, base=base)
-    # the movables not to avoid: met, reported (hit) and moved first
+    # IK and lines clear of the objects to avoid; the other movables may be met (hit below: moved first)
     free = {"ignore": tuple(o for o in world.objects if o not in avoid), "movables": True} if avoid else {}
     with geometry.tight():  # the put-down and its lines keep LINE_PADDING from fixed obstacles, their far ends more (below)
-        if avoid and not geometry.hand_free(w.with_gripper(arm, opened), arm, T, (obj, *free["ignore"]), True):
+        if avoid and not geometry.hand_free(w.with_gripper(arm, opened), arm, T, (obj, *free["ignore"]), movables=True):
             return None  # the hand alone meets what it must avoid: no IK
         put = geometry.ik(w, arm, T, rng, attempts=8 if avoid else 4, **free)
         if put is None:
