@@ -384,13 +384,16 @@ class ClutterSampler(EpochState):
         return found[:limit]
 
 
-def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None, z=None, off_line=False, tall=0.0):
+def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None, z=None, off_line=False, tall=0.0,
+                   avoid=(), spread=None):
     """One try at putting what ``arm`` holds down at (x, y): a base pose facing the spot (behind the tool
     if its ``heading`` is fixed; with ``z``, the object's height, one the reach map offers, else one of the
     annulus; ``off_line``: see reachmap.reaching_base), the object's pose ``pose_at(tool heading)`` (None:
     none there), IK, the lowering and the retreat (with ``tall``, if the straight ones fail, both straight up
-    that far: vertical_putdown). Returns (base, object pose, tool pose, lowering, retreat, movables on the
-    lowering and retreat, movables on the straight joint-space line from the arm's posture) or None."""
+    that far: vertical_putdown; the objects ``avoid`` names are kept clear of as fixed obstacles are) and the
+    tool's heading drawn within ``spread`` of the bearing from the base. Returns (base, object pose, tool pose,
+    lowering, retreat, movables on the lowering and retreat, movables on the straight joint-space line from the
+    arm's posture) or None."""
     from interlayer_manip.generators import LIFT, PRE_GRASP, _line, cleared_lowering, trans
 
     if z is None or not geometry.robot.mobile:
@@ -399,7 +402,8 @@ def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None, z=Non
         base = reaching_base(geometry, arm, rng, x, y, z, heading, off_line)
     if base is None or not _base_free(geometry, world, base, tuck=arm):
         return None
-    spread = 0.3 if geometry.robot.mobile else FIXED_SPREAD  # a fixed base turns the hand, not itself (grasp_poses)
+    if spread is None:
+        spread = 0.3 if geometry.robot.mobile else FIXED_SPREAD  # a fixed base turns the hand, not itself (grasp_poses)
     P = pose_at(math.atan2(y - base[1], x - base[0]) + rng.uniform(-spread, spread))
     if P is None:
         return None
@@ -407,16 +411,20 @@ def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None, z=Non
     opened = geometry.opening(obj, G)  # only as wide as the grasp needs
     T = P @ np.linalg.inv(G)
     w = replace(world, base=base)
+    # IK and lines clear of the objects to avoid; the other movables may be met (hit below: moved first)
+    free = {"ignore": tuple(o for o in world.objects if o not in avoid), "movables": True} if avoid else {}
     with geometry.tight():  # the put-down and its lines keep LINE_PADDING from fixed obstacles, their far ends more (below)
-        put = geometry.ik(w, arm, T, rng, attempts=4)
+        if avoid and not geometry.hand_free(w.with_gripper(arm, opened), arm, T, (obj, *free["ignore"]), movables=True):
+            return None  # the hand alone meets what it must avoid: no IK
+        put = geometry.ik(w, arm, T, rng, attempts=8 if avoid else 4, **free)
         if put is None:
             return None
-        lower = _line(geometry, w, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, put, rng, splits=LINE_SPLITS)
+        lower = _line(geometry, w, arm, T, lambda d: trans(0, 0, d) @ T, LIFT, put, rng, splits=LINE_SPLITS, **free)
         back = _line(geometry, w.with_gripper(arm, opened), arm, T, lambda d: T @ trans(-d, 0, 0), PRE_GRASP, put, rng,
-                     gripper=opened, splits=LINE_SPLITS)
+                     gripper=opened, splits=LINE_SPLITS, **free)
     lower = lower and back and cleared_lowering(geometry, w, arm, obj, opened, lower, back)
     if not lower and tall:
-        lower, back = vertical_putdown(geometry, w, arm, obj, opened, T, put, tall)
+        lower, back = vertical_putdown(geometry, w, arm, obj, opened, T, put, tall, free)
     if not lower:
         return None
     with geometry.stats.timer("collision_checking"):
@@ -426,19 +434,21 @@ def putdown_motion(geometry, world, arm, x, y, pose_at, rng, heading=None, z=Non
     return base, P, T, lower, back, hit, sweep
 
 
-def vertical_putdown(geometry, world, arm, obj, opened, T, put, tall):
+def vertical_putdown(geometry, world, arm, obj, opened, T, put, tall, free=None):
     """(lowering, retreat) both straight up ``tall`` from the put-down at tool pose T (IK ``put``): the hand
     comes down onto the spot and leaves it vertically, as between posts taller than what it holds, where a
     retreat along the approach meets them. Their top ends clear the padded fixed obstacles (transits meet
-    there); (None, None) if not. IK seeds of its own: the caller's draws stay as they were."""
+    there); (None, None) if not. IK seeds of its own: the caller's draws stay as they were. ``free``: _line's
+    ignore and movables (see putdown_motion's avoid)."""
     from interlayer_manip.generators import _line, line_ends_clear, trans
 
     rng = np.random.default_rng(0)
     hand = world.with_gripper(arm, opened)
+    free = free or {}
     with geometry.tight():
-        lower = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, tall, put, rng, splits=LINE_SPLITS)
+        lower = _line(geometry, world, arm, T, lambda d: trans(0, 0, d) @ T, tall, put, rng, splits=LINE_SPLITS, **free)
         back = lower and _line(geometry, hand, arm, T, lambda d: trans(0, 0, d) @ T, tall, put, rng, gripper=opened,
-                               splits=LINE_SPLITS)
+                               splits=LINE_SPLITS, **free)
     if not (back and line_ends_clear(geometry, world, arm, (lower[-1],))
             and line_ends_clear(geometry, hand, arm, (back[-1],), (obj,))):
         return None, None

@@ -290,34 +290,38 @@ def _tool_lines(geometry, world, arm, T, kind, rng, obj, opened, attempts, hand_
     return tuple(reversed(line)), tuple(lift[1:])
 
 
-def _line(geometry, world, arm, T, at, length, start, rng, ignore=(), gripper=None, splits=0, step=LINE_STEP):
+def _line(geometry, world, arm, T, at, length, start, rng, ignore=(), gripper=None, splits=0, step=LINE_STEP,
+          movables=False):
     """IK solutions for at(0) = T, at(step), ..., at(length), each seeded by the previous one (with
-    ``splits``, a step that moves the joints too far is split that many times, see _line_step)."""
+    ``splits``, a step that moves the joints too far is split that many times, see _line_step), clear of
+    fixed obstacles (and of the movables not in ``ignore``, if ``movables``)."""
     n = max(1, math.ceil(length / step - 1e-9))
     out = [start]
     for k in range(1, n + 1):
         steps = _line_step(geometry, world, arm, at, length * (k - 1) / n, length * k / n, out[-1], rng, ignore, gripper,
-                           splits)
+                           splits, movables)
         if steps is None:
             return None
         out += steps
     return out
 
 
-def _line_step(geometry, world, arm, at, d0, d1, prev, rng, ignore, gripper, splits: int):
+def _line_step(geometry, world, arm, at, d0, d1, prev, rng, ignore, gripper, splits: int, movables=False):
     """IK solutions from ``prev`` (at d0) to at(d1): one, or, when the joints move more than 0.35 rad
     on the way, the halves' (at most ``splits`` times). The joints of a nearly stretched arm move fast
     but continuously, so halving the step halves their move; a jump to another IK branch does not
     shrink. Without the split, side grasps across a table's width failed their approach line."""
-    v = geometry.ik(world, arm, at(d1), rng, ignore=ignore, seed=prev, attempts=2, gripper=gripper)
+    v = geometry.ik(world, arm, at(d1), rng, ignore=ignore, seed=prev, attempts=2, gripper=gripper,
+                    **({"movables": True} if movables else {}))
     if v is None:
         return None
     if geometry.arm_space[arm].distance(v, prev) <= 0.35:
         return [v]
     if not splits:
         return None
-    half = _line_step(geometry, world, arm, at, d0, (d0 + d1) / 2, prev, rng, ignore, gripper, splits - 1)
-    rest = half and _line_step(geometry, world, arm, at, (d0 + d1) / 2, d1, half[-1], rng, ignore, gripper, splits - 1)
+    half = _line_step(geometry, world, arm, at, d0, (d0 + d1) / 2, prev, rng, ignore, gripper, splits - 1, movables)
+    rest = half and _line_step(geometry, world, arm, at, (d0 + d1) / 2, d1, half[-1], rng, ignore, gripper, splits - 1,
+                               movables)
     return half + rest if rest else None
 
 

@@ -273,7 +273,7 @@ class PBSampler(ClutterSampler):
 
         overlap = {}  # the objects where the last pose offered stands (putdown_motion asks once per try)
 
-        def clear_of_fixed(pose_at, tight):
+        def clear_of_fixed(pose_at, tight, avoid=frozenset()):
             def at(heading):
                 P = pose_at(heading)
                 if P is None:
@@ -282,14 +282,18 @@ class PBSampler(ClutterSampler):
                     if tight:
                         geometry.sync(world)  # the tight world keeps its own placements
                     overlap["hits"] = geometry.cw.objects_overlap(obj, P)
-                return None if overlap["hits"] & geometry.fixed else P
+                return None if overlap["hits"] & (geometry.fixed | avoid) else P
             return at
 
         found = []
 
         z_spot = z  # a grid pose's bases come from the reach map: the arm reaches it from the side, seldom from the annulus
 
-        def search(spots, tries, z=None, off_line=False):
+        def over(objs):  # how far up the hand lifts what it holds until it clears the tops of objs by OVER
+            tops = [world.objects[o][2, 3] + geometry.specs[o].height / 2 for o in objs]
+            return max(tops) - (z_spot - geometry.specs[obj].height / 2) + OVER
+
+        def search(spots, tries, z=None, off_line=False, avoid=frozenset()):
             for rank, (x, y, pose_at, heading, *grid) in enumerate(spots):
                 if rank >= 3 * limit and found:
                     break  # past the best spots, only search on while nothing at all was found
@@ -297,8 +301,9 @@ class PBSampler(ClutterSampler):
                 # if need be, as the grid allowed
                 tight = bool(grid and grid[0])
                 for _ in range(GRID_TRIES if tight else tries if rank < 3 * limit else 2 * tries):
-                    tried = putdown_motion(geometry, world, arm, x, y, clear_of_fixed(pose_at, tight), rng, heading,
-                                           z_spot if tight else z, off_line, tall=TALL if tight else 0.0)
+                    tall = over(avoid) if avoid else TALL if tight else 0.0
+                    tried = putdown_motion(geometry, world, arm, x, y, clear_of_fixed(pose_at, tight, avoid), rng, heading,
+                                           z_spot if tight else z, off_line, tall, avoid, AROUND if avoid else None)
                     if tried is None:
                         continue
                     base, P, T, lower, back, hit, sweep = tried
@@ -324,6 +329,15 @@ class PBSampler(ClutterSampler):
         # planner learns PDObstructs without the transit that leads there)
         stuck = {o for f in found for o in f[9] if self._stuck(problem, world, o)}
         kept = [f for f in found if not f[9] & stuck]
+        if found and not kept and geometry.robot.mobile:
+            # such an object is an obstacle like a fixed one: put-downs that keep clear of it, the hand let down and
+            # leaving straight up if need be, coming in from any side of the base (panel: objA into the slot behind
+            # objE, the forearm over objE)
+            met, found[:] = found[:], []
+            search(spots[:3 * limit], 3 * per_spot, z, avoid=frozenset(stuck))
+            found.sort(key=lambda f: (f[0], f[1]))
+            kept = [f for f in found if not f[9] & stuck]
+            found[:] = kept or met
         if found and not kept:
             objs = tuple(sorted(set.union(*(f[9] & stuck for f in found))))
             yield Candidate((), {STUCK: (objs, f"put-down: every one found meets {', '.join(objs)}, which no grasp "
@@ -415,6 +429,8 @@ PUT_GRID, PUT_TURN = 0.0125, math.radians(5)  # m, rad: putdown_grid's object po
 # reaches such a pose from few: real_regrasp, 2 % of the reach map's bases)
 GRID_SPOTS, GRID_TRIES = 12, 24
 TALL = 0.3  # m: a vertical lowering and retreat (vertical_putdown) lift the hand over posts this much above the spot
+OVER = 0.02  # m: a put-down kept clear of an object no grasp can move lifts what it holds this far over its top
+AROUND = math.pi / 2  # rad: a put-down kept clear of an object no grasp can move turns the tool this far from the base's bearing
 
 
 def _grasps_of(problem, obj, z) -> list:
