@@ -290,6 +290,21 @@ def test_a_blocked_pick_in_the_papers_scene_fails_before_any_motion_is_planned()
     cand = next(iter(ClutterSampler([0])(problem, step, world, None)))
     out = geometry.refine_step(step, world, cand, None)
     assert not out.ok and out.failure.kind == "obstruction" and out.failure.detail.startswith("pick approach")
+    assert out.failure.start_free  # checked from the candidate's base: where the robot stood does not matter
+
+
+def test_failures_of_a_candidates_own_motions_do_not_depend_on_the_robots_start():
+    """What TryRefine's backjumping reads (``Failure.start_free``): a relaxed transit from where the step
+    started may be blocked elsewhere from another start; a goal configuration that collides, a straight
+    line of the candidate's own are blocked from any start."""
+    from interlayer.motion import MotionPlan
+    from interlayer_manip.state import _failure
+
+    path = MotionPlan(False, obstructions=("o1",), reason="blocked by o1")
+    assert not _failure(path, "place transit").failure.start_free
+    assert _failure(path, "place lower", start_free=True).failure.start_free
+    goal = MotionPlan(False, obstructions=("o1",), reason="the goal configuration collides with o1", goal_blocked=True)
+    assert _failure(goal, "place transit").failure.start_free
 
 
 @pytest.mark.skipif(not R040.is_file(), reason=f"{R040} (beside the checkout) is absent")

@@ -285,3 +285,120 @@ def test_backjumping_counts_the_robots_own_moves(host):
     assert result.status == "solved", result.reason
     assert not events(result, "failure") and result.task_planner_calls == 1
     assert geometry.seen == [(0, "c0", None), (1, "c0", "c0"), (1, "c1", "c0"), (0, "c1", None), (1, "c0", "c1")]
+
+
+class JumpGeometry:
+    """World = (the (item, candidate) pairs taken, where the robot stands): every take moves the robot. ``script(item, label, world)`` -> Failure or None."""
+
+    def __init__(self, script, pose=None):
+        self.script, self.seen = script, []
+        self.pose = pose or (lambda item, label: label)  # where a take leaves the item
+
+    def initial_world(self):
+        return frozenset(), None
+
+    def snapshot(self, world):
+        return sorted(world[0])
+
+    def refine_step(self, step, world, candidate, motion):
+        item, label = step.args[0], candidate.label
+        self.seen.append((item, label))
+        failure = self.script(item, label, world[0])
+        if failure:
+            return StepOutcome(False, failure=failure)
+        return StepOutcome(True, (world[0] | {(item, self.pose(item, label))}, (item, label)), [])
+
+    def moved(self, before, after):
+        return {i for i, _ in before[0] ^ after[0]} | ({ROBOT_MOVED} if before[1] != after[1] else set())
+
+
+def _refine(script, items="abc", pose=None):
+    """TryRefine's error-free pass over [take a, take b, take c] (candidates c0, c1 each): its result, the
+    attempts (item, candidate) in order and the backjumps it reported."""
+    from interlayer.loop import _drain
+    from interlayer.refine import PoseGenerator, Refiner
+
+    geometry, jumps = JumpGeometry(script, pose), []
+
+    def make_generator(i, step, world):
+        return PoseGenerator(lambda rng: (Candidate((k,), {}, k) for k in ("c0", "c1")), [i])
+
+    plan = [GroundStep("take", (x, f"gp_{x}")) for x in items]
+    refiner = Refiner(geometry, None, make_generator, 8, lambda: False, on_backjump=lambda **kw: jumps.append(kw))
+    done = _drain(refiner.try_refine(plan, 0, geometry.initial_world(), {}, partial=False))
+    return done, geometry.seen, jumps
+
+
+def test_a_start_free_obstruction_passes_over_steps_that_only_moved_the_robot():
+    """Every candidate of take c fails on z whatever the robot's start (``Failure.start_free``); take a and
+    take b moved the robot and their own items, never z: their other candidates cannot help, so the
+    error-free pass ends at once (the partial pass learns the obstruction) instead of refining them again.
+    Mutation: ``start_free`` ignored in ``Refiner._culprit`` (every step that moved the robot is a culprit)."""
+    done, seen, jumps = _refine(lambda item, label, world: Failure("obstruction", ("z",), start_free=True)
+                                if item == "c" else None)
+    assert done is None
+    assert seen == [("a", "c0"), ("b", "c0"), ("c", "c0"), ("c", "c1")]
+    assert jumps == [{"step": 2, "to": None, "objects": ["z"], "start_free": True, "skipped": [0, 1]}]
+    # the same obstruction from a motion that starts where the robot stands: take b's other candidate first
+    _, seen, _ = _refine(lambda item, label, world: Failure("obstruction", ("z",)) if item == "c" else None)
+    assert seen[4:6] == [("b", "c1"), ("c", "c0")]
+
+
+def test_backjumping_goes_back_to_the_step_that_moved_the_blocker():
+    """take c fails on a (start-free) while a was taken with c0: conflict-directed backjumping goes from
+    take c straight back to take a (which moved a), passing over take b's other candidate, and the
+    search goes on from there (Alg. 2 with the failure's culprits).
+    Mutation: ``back = i - 1`` always in ``Refiner.try_refine`` (chronological backtracking)."""
+    done, seen, jumps = _refine(lambda item, label, world: Failure("obstruction", ("a",), start_free=True)
+                                if item == "c" and ("a", "c0") in world else None)
+    assert done is not None and [done.outcomes[i].candidate.label for i in range(3)] == ["c1", "c0", "c0"]
+    assert seen == [("a", "c0"), ("b", "c0"), ("c", "c0"), ("c", "c1"), ("a", "c1"), ("b", "c0"), ("c", "c0")]
+    assert jumps == [{"step": 2, "to": 0, "objects": ["a"], "start_free": True, "skipped": [1]}]
+
+
+def test_a_step_jumped_back_to_inherits_the_failures_that_sent_the_search_there():
+    """take c fails on a and b (start-free) while both were taken with c0: the search goes back to take b
+    (it moved b), whose other candidate fails on z, which nothing moved. take b's own failures then say
+    nothing before it can help, but the ones it inherited from take c name a, which take a moved: the
+    search goes back to take a, and take a's other candidate solves.
+    Mutation: no ``blockers[back] = _merged(...)`` (a step forgets the failures it was sent back for)."""
+    def script(item, label, world):
+        if item == "c" and {("a", "c0"), ("b", "c0")} <= world:
+            return Failure("obstruction", ("a", "b"), start_free=True)
+        if item == "b" and label == "c1":
+            return Failure("obstruction", ("z",), start_free=True)
+        return None
+
+    done, seen, _ = _refine(script)
+    assert done is not None and [done.outcomes[i].candidate.label for i in range(3)] == ["c1", "c0", "c0"]
+    assert seen == [("a", "c0"), ("b", "c0"), ("c", "c0"), ("c", "c1"), ("b", "c1"), ("a", "c1"), ("b", "c0"), ("c", "c0")]
+
+
+def test_a_success_that_leaves_the_blockers_where_they_were_is_known_to_fail():
+    """take a puts a at the same place whatever its candidate (a goal pose); take c fails on a there,
+    start-free. Backjumping goes back to take a; its other candidate succeeds but leaves a where take c
+    failed on it, so take b and take c are not refined again for it (a nogood): the pass ends.
+    Mutation: ``_known_failure`` returns None (no nogoods)."""
+    done, seen, jumps = _refine(lambda item, label, world: Failure("obstruction", ("a",), start_free=True)
+                                if item == "c" else None, pose=lambda item, label: "goal" if item == "a" else label)
+    assert done is None
+    assert seen == [("a", "c0"), ("b", "c0"), ("c", "c0"), ("c", "c1"), ("a", "c1")]
+    assert jumps[1] == {"step": 2, "to": 0, "objects": ["a"], "start_free": True, "skipped": [1], "known": 0}
+
+
+def test_a_nogood_met_again_ends_the_pass():
+    """take a puts a at the same place whatever its candidate; take c fails on a there, start-free; take
+    a's other candidate fails on q from where the robot stood, so the search goes back over take x, then
+    take w. Each time take a's first candidate leaves a where take c failed on it; the second time in
+    this pass ends it (the partial pass learns the obstruction) rather than refine on to the budget's end.
+    Mutation: ``KNOWN_LIMIT`` = 3."""
+    def script(item, label, world):
+        if item == "c":
+            return Failure("obstruction", ("a",), start_free=True)
+        return Failure("obstruction", ("q",)) if item == "a" and label == "c1" else None
+
+    done, seen, jumps = _refine(script, items="wxabc", pose=lambda item, label: "goal" if item == "a" else label)
+    assert done is None
+    assert seen == [("w", "c0"), ("x", "c0"), ("a", "c0"), ("b", "c0"), ("c", "c0"), ("c", "c1"), ("a", "c1"),
+                    ("x", "c1"), ("a", "c0"), ("a", "c1"), ("w", "c1"), ("x", "c0"), ("a", "c0")]
+    assert jumps[-1] == {"step": 4, "to": None, "objects": ["a"], "start_free": True, "skipped": [3], "known": 2}

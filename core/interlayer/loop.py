@@ -189,6 +189,11 @@ class InterfaceLayer:
                         action=str(self.plan[step]), candidate=candidate.label, ok=outcome.ok, cached=cached,
                         failure=outcome.failure.to_json() if outcome.failure else None)
 
+    def _on_backjump(self, step, to, objects, start_free, skipped, known=None):
+        self.stats.count("backjumps" if known is None else "nogoods_met")
+        self.trace.emit("backjump", step=step, action=str(self.plan[step]), to=to, objects=objects,
+                        start_free=start_free, skipped=skipped, **({"known": known} if known is not None else {}))
+
     def _shortcut(self, init, world0, outcomes):
         """Drop steps the solved plan does not need (beyond the paper; see shortcut.py)."""
         from .shortcut import shortcut
@@ -296,7 +301,7 @@ class InterfaceLayer:
         world0 = self.geometry.initial_world()
         step, prefix, world = 0, {}, world0  # line 3
         refiner = Refiner(self.geometry, self.motion, self.make_generator, self.settings.max_refine_attempts,
-                          self._out_of_time, self._on_attempt, self.stats)
+                          self._out_of_time, self._on_attempt, self.stats, self._on_backjump)
         while not self._out_of_time():  # line 4
             refiner.clear_cache()
             self.trace.emit("refine", mode="error-free", from_step=step, plan=plan_json(self.plan), epoch=self.epoch)

@@ -131,6 +131,7 @@ class MotionPlan:
     obstructions: tuple = ()  # movable objects on the relaxed path (GetMPErrors)
     reason: str = ""
     time: float = 0.0
+    goal_blocked: bool = False  # the obstructions collide with the goal itself: any start fails on them
 
 
 @dataclass
@@ -183,7 +184,8 @@ class MotionPlanner:
             blockers = query.movables_at(goal)
             if blockers:
                 return MotionPlan(False, obstructions=tuple(sorted(blockers)), time=time.perf_counter() - t0,
-                                  reason="the goal configuration collides with " + ", ".join(sorted(blockers)))
+                                  reason="the goal configuration collides with " + ", ".join(sorted(blockers)),
+                                  goal_blocked=True)
         if relaxed is None:
             if not self.counts_work:
                 limit = min(limit, deadlines.time_left())

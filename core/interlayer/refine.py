@@ -49,6 +49,10 @@ class Failure:
     # too (TaskModel.step_with names the references), so that one replan learns a chain of blockers; or a
     # function giving them, called when the failure is translated
     related: tuple | Callable[[], tuple] = field(default=(), compare=False)
+    # True when the verdict does not depend on the robot's configuration at the step's start (what the
+    # candidate itself reaches is blocked: its goal configuration, its straight lines), so that earlier
+    # steps that only moved the robot cannot change it (TryRefine's backjumping, see Refiner)
+    start_free: bool = False
 
     def also_objects(self) -> Mapping[str, tuple]:
         return self.also() if callable(self.also) else self.also
@@ -59,6 +63,8 @@ class Failure:
     def to_json(self, related: bool = False) -> dict:
         """With ``related``, the related failures too (computed if they are a function: a translated failure's)."""
         out = {"kind": self.kind, "objects": list(self.objects), "detail": self.detail}
+        if self.start_free:
+            out["start_free"] = True
         if self.also and not callable(self.also):
             out["also"] = {k: list(v) for k, v in self.also.items()}
         if self.related and (related or not callable(self.related)):
@@ -234,14 +240,21 @@ class Refiner:
     one failure), so the budget scales with the plan's length and a plan whose every step refines is
     never cut off; the loop raises it at every epoch.
 
-    Backjumping (error-free mode, geometries with ``moved``): when every candidate of a step failed
-    on obstructions by objects that no step of this call has moved, and no step of it moved the
-    robot (whose pose is where the failed motions started), other instantiations of the earlier
-    steps leave those objects where they are and start the step from the same pose, so the call
-    ends there instead of re-refining them; the partial pass that follows learns the obstructions.
-    Partial mode keeps the paper's full backtracking."""
+    Backjumping (error-free mode, geometries with ``moved``; conflict-directed): when every candidate
+    of a step failed on obstructions by named objects, only an earlier step that moved one of them,
+    or moved the robot where a failure depended on the robot's start (not ``Failure.start_free``), can
+    change the verdict: the search jumps back to the latest such step, passing over the others (their
+    other instantiations would leave the blockers where they are and be paid for again, transit by
+    transit), and that step inherits the failures as its own; with none, the call ends there and the
+    partial pass that follows learns the obstructions. A step with any other failure backtracks to the
+    step before it (Alg. 2). A start-free conflict is also remembered (a nogood): when the step jumped
+    back to, or one after it, succeeds again leaving those objects where they stood, the later step
+    would fail the same way, so that success counts as a failure of its own step (the steps between
+    are not refined for it); met KNOWN_LIMIT times, it ends the call. ``on_backjump`` observes each jump
+    (``known``: the step that met a nogood). Partial mode keeps the paper's full backtracking."""
 
-    def __init__(self, geometry, motion, make_generator, max_attempts: int, out_of_time, on_attempt=None, stats=None):
+    def __init__(self, geometry, motion, make_generator, max_attempts: int, out_of_time, on_attempt=None, stats=None,
+                 on_backjump=None):
         from .trace import Stats
 
         self.geometry, self.motion = geometry, motion
@@ -250,19 +263,35 @@ class Refiner:
         self.max_attempts = max_attempts
         self.out_of_time = out_of_time
         self.on_attempt = on_attempt or (lambda **kw: None)
+        self.on_backjump = on_backjump or (lambda **kw: None)
         self._cache: dict = {}
 
     def clear_cache(self):
         self._cache.clear()
 
-    def _futile(self, blocked, start, world) -> bool:
-        """Backtracking cannot help: the exhausted step's failures were all obstructions (``blocked``
-        names the objects) and no step since ``start`` moved any of them, nor the robot."""
+    def _culprit(self, conflict, worlds, start: int, i: int) -> int:
+        """The latest step before ``i`` (not before ``start``) whose other instantiations could change
+        the exhausted step i's failures (``conflict``: the objects they named and whether all were
+        start-free, or None: any step could), ``start - 1`` when none could."""
         moved = getattr(self.geometry, "moved", None)
-        if not blocked or moved is None:
-            return False
-        changed = moved(start, world)
-        return ROBOT_MOVED not in changed and not (blocked & changed)
+        if conflict is None or moved is None:
+            return i - 1
+        blocked, start_free = conflict
+        for k in range(i - 1, start - 1, -1):
+            changed = moved(worlds[k], worlds[k + 1])
+            if blocked & changed or (not start_free and ROBOT_MOVED in changed):
+                return k
+        return start - 1
+
+    def _known_failure(self, nogoods, k: int, world):
+        """The nogood that step k's success ending in ``world`` meets: every candidate of its later step j
+        failed, start-free, on objects that stand in ``world`` where they stood then, and no step between k
+        and j moved them (a step's candidates move the same objects, in other ways); else None."""
+        for nogood in nogoods:
+            j, c, blocked, failed_in, _ = nogood
+            if c <= k < j and not (blocked & self.geometry.moved(failed_in, world)):
+                return nogood
+        return None
 
     def try_refine(self, plan: list[GroundStep], step: int, world0, prefix: dict, partial: bool):
         """Alg. 2. A generator: yields PartialRefinement in partial mode; its return value
@@ -273,7 +302,12 @@ class Refiner:
         gens = {step: self.make_generator(step, plan[step], world0)} if step < n else {}
         drawn = {step: 0}  # candidates each live generator yielded
         i, failures = step, {}
-        blockers: dict = {}  # step -> the objects its failures named since its generator was made (see _obstructions)
+        # step -> (the objects its failures and those of the steps that jumped back to it named, whether all
+        # were start-free) since its generator was made, or None once one was no obstruction (see _obstructions)
+        blockers: dict = {}
+        # (step j, its culprit c, the objects, the world at j): step j failed on those objects, start-free, and
+        # the steps between c and j did not move them; a step from c on that leaves them so dooms step j
+        nogoods: list = []
         while step <= i < n:  # line 4
             if self.out_of_time():
                 return None
@@ -291,13 +325,24 @@ class Refiner:
                 if failures[i] >= self.max_attempts:
                     return None
             if cand is None:  # lines 7-10: generator exhausted, backtrack
-                if not partial and self._futile(blockers.get(i), worlds[step], worlds[i]):
-                    return None
-                del gens[i]
-                i -= 1
-                if chain:
-                    chain.pop()
-                outcomes.pop(i, None)
+                back = i - 1
+                if not partial:  # conflict-directed: to the latest step that can change the failures
+                    conflict = blockers.get(i)  # None: no candidate at all, or a failure of another kind
+                    back = self._culprit(conflict, worlds, step, i)
+                    if back < i - 1:
+                        self.on_backjump(step=i, to=back if back >= step else None, objects=sorted(conflict[0]),
+                                         start_free=conflict[1], skipped=list(range(max(back, step - 1) + 1, i)))
+                    if back < step:
+                        return None
+                    blockers[back] = _merged(blockers.get(back, _NONE_YET), conflict)
+                    if conflict is not None and conflict[1]:  # start-free: a nogood (see _known_failure)
+                        nogoods.append([i, back, conflict[0], worlds[i], 0])
+                for k in range(back + 1, i + 1):
+                    del gens[k]
+                del chain[max(back - step, 0):]
+                for k in range(max(back, step), i):
+                    outcomes.pop(k, None)
+                i = back
                 continue
             # an outcome depends on the candidate itself and the world it starts from, not on the
             # candidate's place in its generator's stream (a generator's state may reorder it)
@@ -314,7 +359,19 @@ class Refiner:
                     failures[i] = failures.get(i, 0) + 1
             drawn[i] = drawn.get(i, 0) + 1
             self.on_attempt(step=i, candidate=cand, outcome=outcome, partial=partial, cached=cached)
-            if outcome.ok:  # line 12
+            known = self._known_failure(nogoods, i, outcome.world) if outcome.ok and nogoods else None
+            if known is not None:  # a success that leaves a later step's blockers where they failed it
+                j, blocked = known[0], known[2]
+                known[4] += 1
+                again = known[4] >= KNOWN_LIMIT  # the earlier steps keep leaving them there: learn it instead
+                self.on_backjump(step=j, to=None if again else i, objects=sorted(blocked), start_free=True,
+                                 skipped=list(range(i + 1, j)), known=i)
+                if again:
+                    return None
+                if not cached:
+                    failures[i] = failures.get(i, 0) + 1
+                blockers[i] = _merged(blockers.get(i, _NONE_YET), (blocked, True))
+            elif outcome.ok:  # line 12
                 outcomes[i], worlds[i + 1] = replace(outcome, candidate=cand), outcome.world
                 chain.append(key[2])
                 i += 1
@@ -323,7 +380,7 @@ class Refiner:
                     blockers.pop(i, None)
                     drawn[i] = 0
             else:
-                blockers[i] = _obstructions(outcome.failure, blockers.get(i, set()))
+                blockers[i] = _obstructions(outcome.failure, blockers.get(i, _NONE_YET))
             if partial and not outcome.ok and outcome.failure is not None:  # lines 13-14
                 prefix_out = {k: v for k, v in outcomes.items() if k < i}
                 yield PartialRefinement(prefix_out, worlds[i], i, outcome.failure, cand)
@@ -335,9 +392,21 @@ class Refiner:
         return None
 
 
+_NONE_YET = (frozenset(), True)  # a step's conflict before any failure
+# A nogood met this often in one error-free pass ends it: the steps before keep leaving the blockers where
+# the later step failed on them (a put-down at a goal pose, whatever its grasp), and the partial pass that
+# follows learns the obstruction instead of the search re-refining them to the budget's end
+KNOWN_LIMIT = 2
+
+
 def _obstructions(failure, so_far):
-    """``so_far`` and the objects ``failure`` names; None once a failure was not an obstruction by
-    named objects (then any earlier step may be the cause)."""
+    """``so_far`` with ``failure``: the objects named and whether every failure was start-free; None
+    once a failure was not an obstruction by named objects (then any earlier step may be the cause)."""
     if so_far is None or failure is None or failure.kind != "obstruction" or not failure.objects:
         return None
-    return so_far | set(failure.objects)
+    return so_far[0] | set(failure.objects), so_far[1] and failure.start_free
+
+
+def _merged(a, b):
+    """Two conflicts as one (None, any step may be the cause, absorbs)."""
+    return None if a is None or b is None else (a[0] | b[0], a[1] and b[1])

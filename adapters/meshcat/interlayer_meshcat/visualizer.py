@@ -489,6 +489,11 @@ def _plan_list(steps, start=0, marks=None, removed=(), labels=None):
     return f'<ol class="plan">{"".join(items)}</ol>'
 
 
+def _span(steps) -> str:
+    """Step numbers as "3" or "3-7" (consecutive)."""
+    return "" if not steps else str(steps[0]) if len(steps) == 1 else f"{steps[0]}-{steps[-1]}"
+
+
 def _diff_marks(old, new, keep):
     """Marks for ``new`` vs ``old``: the kept prefix (< keep), added steps, and the old
     steps dropped (with the position in ``new`` they would have been at)."""
@@ -654,11 +659,11 @@ class _Explainer:
                     plan = pending_task
             elif kind == "refine":
                 j = i + 1
-                attempts = []
-                while j < len(ev) and ev[j].get("type") == "attempt":
-                    attempts.append(ev[j])
+                attempts, jumps = [], []
+                while j < len(ev) and ev[j].get("type") in ("attempt", "backjump"):
+                    (attempts if ev[j]["type"] == "attempt" else jumps).append(ev[j])
                     j += 1
-                html.append(self.refine_block(e, attempts, ev[j] if j < len(ev) else None))
+                html.append(self.refine_block(e, attempts, ev[j] if j < len(ev) else None, jumps))
                 plan = list(e.get("plan") or plan)
                 i = j
                 continue
@@ -705,7 +710,24 @@ class _Explainer:
             i += 1
         return "\n".join(html)
 
-    def refine_block(self, e, attempts, after) -> str:
+    def backjump_text(self, b) -> str:
+        """What a backjump of TryRefine skipped, and why (the ``backjump`` trace event)."""
+        skipped = b.get("skipped") or []
+        objs = ", ".join(map(self.shown, b.get("objects") or []))
+        if b.get("known") is not None:
+            then = ("the success counts as a failure and the step's next candidate is tried" if b.get("to") is not None
+                    else "this happened before in this pass: the pass ends and the partial pass learns the obstruction")
+            return (f"step {b['known']} succeeded again but left {escape(objs)} where every candidate of step "
+                    f"{b.get('step')} <code>{escape(self.shown(b.get('action', '')))}</code> failed on them, whatever the "
+                    f"robot's start: step(s) {escape(_span(skipped))} not refined for it; {escape(then)}.")
+        where = "" if b.get("start_free") else " and did not move the robot"
+        then = (f"the search goes back to step {b['to']}, which moved one of them" if b.get("to") is not None
+                else "the pass ends here and the partial pass learns the obstruction")
+        return (f"every candidate of step {b.get('step')} <code>{escape(self.shown(b.get('action', '')))}</code> failed "
+                f"on {escape(objs)}; step(s) {escape(_span(skipped))} moved none of them{where}, "
+                f"so their other candidates could not help: not re-refined; {escape(then)}.")
+
+    def refine_block(self, e, attempts, after, jumps=()) -> str:
         ok = sum(1 for a in attempts if a.get("ok"))
         bad = len(attempts) - ok
         cached = sum(1 for a in attempts if a.get("cached"))
@@ -729,7 +751,8 @@ class _Explainer:
         return (f'<div class="ev refine"><span class="t">t = {t0:.2f} s</span><h3>{escape(mode.capitalize())} refinement '
                 f'from step {e.get("from_step")} <span class="muted">(epoch {e.get("epoch", 0)}, {dur:.2f} s)</span></h3>'
                 f'{escape(what)}: {len(attempts)} attempt(s), <span style="color:#2e9d4a">{ok} ok</span>, '
-                f'<span style="color:#c9302c">{bad} failed</span>{f", {cached} cached" if cached else ""}.{table}</div>')
+                f'<span style="color:#c9302c">{bad} failed</span>{f", {cached} cached" if cached else ""}.{table}'
+                + "".join(f"<div>Backjump: {self.backjump_text(b)}</div>" for b in jumps) + "</div>")
 
     def failure_block(self, e, n) -> str:
         from .page import scene_embed

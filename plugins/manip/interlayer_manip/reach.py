@@ -109,7 +109,8 @@ class Reach:
         chain = cand.values.get("chain")
         return StepOutcome(False, failure=Failure("obstruction", blockers, "pick approach: blocked by " + ", ".join(blockers),
                                                   also=also if look is not None else {},
-                                                  related=self.blocker_chain(world, obj, blockers, chain) if chain else ()))
+                                                  related=self.blocker_chain(world, obj, blockers, chain) if chain else (),
+                                                  start_free=True))
 
     def blocker_chain(self, world, obj, blockers, chain, depth: int = CHAIN_DEPTH):
         """``Failure.related`` of a pick of obj that ``blockers`` block, as a function called once: for each

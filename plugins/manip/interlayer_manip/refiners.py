@@ -195,7 +195,7 @@ class Refiners:
             return stuck
         res = self._line(w, arm, approach, "approach", segs, acc)
         if not res.ok:
-            return _failure(res, "pick approach", obj)
+            return _failure(res, "pick approach", obj, start_free=True)
         w = w.with_arm(arm, grasp)
         q = self.sync(w)
         G = np.linalg.inv(self.robot.tool_pose(q, arm)) @ w.objects[obj]
@@ -205,7 +205,7 @@ class Refiners:
         segs.append({"kind": "grasp", "arm": arm, "object": obj, "grasp": G.tolist()})
         res = self._line(w, arm, (grasp, *lift), "raise", segs, acc)
         if not res.ok:
-            return _failure(res, "pick raise", obj)
+            return _failure(res, "pick raise", obj, start_free=True)
         w = w.with_arm(arm, lift[-1])
         if not self.robot.carry_poses(arm):  # no carry postures (a fixed arm): it keeps the lifted pose
             return StepOutcome(True, w, segs)
@@ -214,7 +214,7 @@ class Refiners:
             return StepOutcome(False, failure=Failure("ik", (), "no collision-free carry posture"))
         res = self._transit(motion, w, arm, lift[-1], carry, "pick carry", segs, acc, staged="start")
         if not res.ok:
-            return _failure(res, "pick carry", obj)
+            return _failure(res, "pick carry", obj, start_free=True)
         return StepOutcome(True, w.with_arm(arm, carry), segs)
 
     def _place(self, step, world, cand, motion, acc):
@@ -229,7 +229,7 @@ class Refiners:
         w = w.with_arm(arm, above)
         res = self._line(w, arm, lower, "lower", segs, acc)
         if not res.ok:
-            return _failure(res, "place lower")
+            return _failure(res, "place lower", start_free=True)
         w = w.with_arm(arm, put)
         P = self.object_pose(w, obj)
         opened = self.opening(*w.held[arm])
@@ -248,7 +248,7 @@ class Refiners:
         None, or the failure (``label`` names the retreat)."""
         res = self._line(w, arm, path, "retreat", segs, acc)
         if not res.ok:
-            return w, _failure(res, label)
+            return w, _failure(res, label, start_free=True)
         return self.set_gripper(w.with_arm(arm, path[-1]), arm, "closed", segs, "closing the gripper after the retreat")
 
     def retreat_and_tuck(self, motion, w, arm, group, retreat, what, segs, acc):
@@ -260,7 +260,7 @@ class Refiners:
         res = self._plan(motion, self.arm_query(w, arm, retreat[-1], self.robot.home(arm), f"{what} tuck", acc), "transit",
                          group, segs, _holding(w), w, acc)
         if not res.ok:
-            return _failure(res, f"{what} tuck")
+            return _failure(res, f"{what} tuck", start_free=True)
         return StepOutcome(True, w.with_arm(arm, self.robot.home(arm)), segs)
 
     def set_gripper(self, w, arm, state, segs, what, exclude=None):
@@ -277,5 +277,6 @@ class Refiners:
         q = self.sync(w)
         movables = self.cw.colliding_movables(q) - {o for o, _ in w.held.values()} - {exclude}
         if movables:
-            return StepOutcome(False, failure=Failure("obstruction", tuple(sorted(movables)), f"{what}: blocked"))
+            return StepOutcome(False, failure=Failure("obstruction", tuple(sorted(movables)), f"{what}: blocked",
+                                                      start_free=True))
         return StepOutcome(False, failure=Failure("unreachable", (), f"{what}: collides with fixed obstacles"))

@@ -95,10 +95,13 @@ def _holding(world):
     return {a: o for a, (o, _) in world.held.items()}
 
 
-def _failure(plan, phase, exclude=None) -> StepOutcome:
-    """An obstruction failure names the movables in the way (never the object being picked)."""
+def _failure(plan, phase, exclude=None, start_free=False) -> StepOutcome:
+    """An obstruction failure names the movables in the way (never the object being picked); ``start_free``:
+    the motion did not start where the step started (a straight line of the candidate's own, a motion from
+    its end), so the verdict does not depend on the robot's start; nor does a goal that collides."""
     blockers = tuple(o for o in plan.obstructions if o != exclude)
     if blockers:
-        return StepOutcome(False, failure=Failure("obstruction", blockers, f"{phase}: {plan.reason}"))
+        return StepOutcome(False, failure=Failure("obstruction", blockers, f"{phase}: {plan.reason}",
+                                                  start_free=start_free or plan.goal_blocked))
     return StepOutcome(False, failure=Failure("unreachable", (), f"{phase}: {plan.reason}"))
 
