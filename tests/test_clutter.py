@@ -261,6 +261,10 @@ def test_moved_names_the_objects_a_step_picked_or_put_down_and_the_robots_moves(
     assert problem.geometry.moved(world, world) == set()
     assert problem.geometry.moved(world, picked) == {a}
     assert problem.geometry.moved(world, moved) == {a, b}
+    # a put-down within IK's tolerance of the same pose (another grasp's, at a goal pose) is the same place
+    P = world.objects[b].copy()
+    P[:3, 3] += 0.0015
+    assert problem.geometry.moved(world, replace(world, objects={**world.objects, b: P})) == set()
     # the robot's own moves count too (TryRefine's backjumping): its base, an arm, a gripper
     from interlayer.refine import ROBOT_MOVED
 

@@ -1208,3 +1208,27 @@ def test_panel_in_small_is_solved_and_validated(tmp_path):
     """The whole of panel in small: b picked and put into the slot behind e, which no grasp can move, and the plan
     validates. Before, every put-down found met e and the run gave up. Mutation: as the test above."""
     _solved_and_valid(tmp_path, panel_scene())
+
+
+def test_a_failure_past_the_drive_does_not_depend_on_where_the_robot_stood(tmp_path, monkeypatch):
+    """TryRefine's backjumping (Failure.start_free): a pick or put-down that drives first tucks the arms and
+    drives; what blocks its arm motions after that is blocked from wherever the robot stood before the
+    step, what blocks the drive is not. The manipulation layer's own refinement is replaced by a stand-in
+    that reports each obstruction (the decoration is what is tested here).
+    Mutation: the ``start_free`` replacement in PBGeometry._refine_step dropped."""
+    from interlayer.domain import GroundStep
+    from interlayer.refine import Failure, StepOutcome
+    from interlayer_manip.world import ManipulationGeometry
+    from interlayer_pbjson.samplers import PBSampler
+
+    p = load(tmp_path, scene(goal_regions={"b": "goal"}))
+    g = p.geometry
+    step = GroundStep("pick", ("b", "left", "right", "bpfg_b_left", "gpfg_b_left", "gpfg_b_right"))
+    w = g.initial_world()
+    w = replace(w, arms={a: tuple(g.robot.home(a)) for a in g.robot.arms})  # nothing to tuck (no motion planner)
+    cand = next(iter(PBSampler([0])(p, step, w, np.random.default_rng(0))))
+    assert tuple(cand.waypoints[0]) != tuple(w.base)  # the pick drives
+    for detail, free in (("pick transit: blocked by o", True), ("pick drive: blocked by o", False)):
+        monkeypatch.setattr(ManipulationGeometry, "refine_step", lambda *a, d=detail: StepOutcome(
+            False, failure=Failure("obstruction", ("o",), d)))
+        assert g.refine_step(step, w, cand, None).failure.start_free is free

@@ -132,11 +132,13 @@ class ManipulationGeometry(MotionQueries, Reach, Refiners, Articulated, Output):
         return world.to_json()
 
     def moved(self, before: World, after: World) -> set:
-        """Objects whose pose differs between two worlds (picked up or put down in between),
+        """Objects whose pose differs between two worlds (picked up or put down in between; a put-down
+        within IK's tolerance of the same pose is the same place: another grasp's put-down at a goal pose),
         articulated bodies whose joints do, and ``ROBOT_MOVED`` if the robot's base, arms or grippers do."""
-        out = set()
-        for a, b in ((before.objects, after.objects), (before.joints, after.joints)):
-            out |= {o for o in a.keys() | b.keys() if o not in a or o not in b or not np.array_equal(a[o], b[o])}
+        a, b = before.objects, after.objects
+        out = {o for o in a.keys() | b.keys() if o not in a or o not in b or not _same_place(a[o], b[o])}
+        a, b = before.joints, after.joints
+        out |= {o for o in a.keys() | b.keys() if o not in a or o not in b or not np.array_equal(a[o], b[o])}
         if (not np.array_equal(before.base, after.base) or before.grippers != after.grippers
                 or any(not np.array_equal(before.arms[a], after.arms[a]) for a in before.arms)):
             out.add(ROBOT_MOVED)
@@ -222,6 +224,15 @@ class ManipulationGeometry(MotionQueries, Reach, Refiners, Articulated, Output):
                 cw.attach(name, arm, q)
         self._synced = world
         return q
+
+
+# IK's tolerance (interlayer_pinocchio.solve_ik: 1 mm, 1 degree), twice: object poses closer than this are one place
+SAME_PLACE = (0.002, 0.035)
+
+
+def _same_place(P, Q) -> bool:
+    return P is Q or (np.allclose(P[:3, 3], Q[:3, 3], rtol=0, atol=SAME_PLACE[0])
+                      and np.allclose(P[:3, :3], Q[:3, :3], rtol=0, atol=SAME_PLACE[1]))
 
 
 def load_robot(desc, extra: dict):

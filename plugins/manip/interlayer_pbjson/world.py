@@ -261,6 +261,11 @@ class PBGeometry(ManipulationGeometry):
                 if step.action == "place_at_goal":
                     step = replace(step, action="place")
                 out = super().refine_step(step, world, candidate, motion)
+                if drives and not out.ok and out.failure.kind == "obstruction" and \
+                        not out.failure.detail.startswith(f"{step.action} drive"):
+                    # past the drive the arms start in their driving postures (tucked, or the carry posture
+                    # beside the shoulder), wherever the robot stood before the step (TryRefine's backjumping)
+                    out = replace(out, failure=replace(out.failure, start_free=True))
             if out.ok:
                 out.segments = segs + out.segments
             return out
