@@ -166,14 +166,15 @@ def histogram_png(runs, path: Path) -> bool:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import matplotlib.ticker
+    import numpy as np
 
     groups = _groups(runs)
     solved = {k: [r["time_total"] for r in v if r["status"] == "solved"] for k, v in groups.items()}
     solved = {k: v for k, v in solved.items() if v}
     if not solved:
         return False
-    top = max(max(v) for v in solved.values())
-    bins = [top * i / 20 for i in range(21)]
+    top = max(max(v) for v in solved.values()) or 1.0
+    bins = np.linspace(0.0, top, 21)  # its last edge is exactly top: the slowest run is counted
     cols = min(3, len(solved))
     rows = -(-len(solved) // cols)
     fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.4 * rows), squeeze=False, sharex=True)
