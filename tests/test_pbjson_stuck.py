@@ -85,3 +85,16 @@ def test_each_box_of_the_stuck_set_has_a_hit_at_every_grasp_for_both_hands(tmp_p
         return
     assert [set(h) for arms in hits["b"] for h in arms] == [{"a", "c"}] * 4
     assert all(set(h) == {"b"} for o in ("a", "c") for arms in hits[o] for h in arms), hits
+
+
+@pytest.mark.parametrize("spacing", [0.065, 0.09])
+def test_check_names_the_stuck_blocks(tmp_path, capsys, spacing):
+    """``interlayer check`` (which plans nothing, exit 0) prints the proof a pick would make, at 2.5 cm gaps
+    only. Mutation: summary.describe without its Stuck line."""
+    from interlayer.cli import main
+
+    path = tmp_path / "three.json"
+    path.write_text(json.dumps(side_by_side(spacing)))
+    assert main(["check", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert ("Stuck: a, b and c stand so close" in out) == (spacing < 0.08), out
