@@ -175,6 +175,14 @@ class Distances:
         touches an environment object that is not held or ignored (movable ones only if ``movables``).
         No IK: any arm configuration that reaches that tool pose puts the hand there, so a grasp whose
         hand collides needs no IK to be rejected."""
+        return next(self._hand_touches(q, arm, tool_pose, ignore, movables), None) is not None
+
+    def hand_hits(self, q, arm: str, tool_pose, ignore: Iterable[str] = frozenset(), movables: bool = False) -> set[str]:
+        """The names of all the objects that ``hand_collides`` would find touched."""
+        return set(self._hand_touches(q, arm, tool_pose, ignore, movables))
+
+    def _hand_touches(self, q, arm, tool_pose, ignore, movables):
+        """The objects the hand touches (see ``hand_collides``), a name at a time (a name may repeat)."""
         if self._needs_build:
             self._build()
         T = np.asarray(tool_pose, dtype=float)
@@ -182,7 +190,7 @@ class Distances:
         others = [o for o in self._objects.values()
                   if o.held_by is None and o.name not in skip and (movables or not o.movable)]
         if not others:
-            return False
+            return
         geoms, rels, centres, radii = self._hand(q, arm)
         mine = centres @ T[:3, :3].T + T[:3, 3]
         theirs = np.array([o.pose.act(o.geometry.aabb_center) for o in others])
@@ -190,14 +198,13 @@ class Distances:
         d = mine[:, None, :] - theirs[None, :, :]
         close = np.einsum("ijk,ijk->ij", d, d) <= reach * reach  # bounding spheres: most pairs are far apart
         if not close.any():
-            return False
+            return
         tool = pin.SE3(np.ascontiguousarray(T[:3, :3]), T[:3, 3].copy())  # a tool pose: rigid by construction
         for i, j in zip(*np.nonzero(close)):
             o = others[j]
             if coal.collide(geoms[i], _transform(tool * rels[i]), o.geometry, _transform(o.pose), self._request,
                             coal.CollisionResult()):
-                return True
-        return False
+                yield o.name
 
     def _hand(self, q, arm: str) -> tuple:
         """The hand's geometries, their poses in the tool frame, their bounding-sphere centres in the

@@ -180,10 +180,13 @@ def no_grasp_fits(problem, world, obj) -> str:
     blockers = hand_blockers(problem, world, obj)
     if not blockers:
         return ""
-    padded = f"; planning keeps {geometry.line_padding * 100:.1f} cm from fixed obstacles at a grasp" if geometry.line_padding else ""
     return (f"every grasp of {obj} that fits the gripper puts the {geometry.robot.description.name}'s fingers into "
             f"{', '.join(blockers)} where {obj} stands (the gripper opened only {OPEN_CLEARANCE * 100:.0f} cm wider than "
-            f"{obj}{padded})")
+            f"{obj}{_padded(geometry)})")
+
+
+def _padded(geometry) -> str:
+    return f"; planning keeps {geometry.line_padding * 100:.1f} cm from fixed obstacles at a grasp" if geometry.line_padding else ""
 
 
 def hand_blockers(problem, world, obj) -> tuple:
@@ -207,10 +210,7 @@ def hand_blockers(problem, world, obj) -> tuple:
 def _hand_blockers(problem, world, obj, P) -> tuple:
     geometry = problem.geometry
     rng = np.random.default_rng(0)
-    poses = {}
-    for heading in np.linspace(-math.pi, math.pi, 8, endpoint=False):
-        for kind, T in grasp_poses(geometry, obj, P, heading, _problem_grasps(problem, obj), rng, n_side=1):
-            poses[tuple(np.round(T[:3, :4].ravel(), 6))] = T
+    poses = _grasp_set(problem, obj, P)
     if not poses:
         return ()  # check_graspable names the width
     ignore = tuple(geometry.fixed) + tuple(world.objects)
@@ -237,6 +237,86 @@ def _hand_blockers(problem, world, obj, P) -> tuple:
                 return ()
             blockers |= hits
     return tuple(sorted(blockers))
+
+
+def stuck_together(problem, world, pushed=()) -> tuple:
+    """(members, walled, walls): the movable boxes that block each other's every grasp where they stand, the largest
+    set S such that every grasp of each member that fits the gripper puts the hand, opened as that grasp
+    needs, into a fixed obstacle or another member, for either arm, wherever the arm and base are (the hand
+    alone, at the grasp); those members that fixed obstacles alone block so (``hand_blockers``' kind); the
+    fixed obstacles met.
+    Objects move only by being picked, so no member can ever be picked first: none ever moves. Boxes only
+    (their grasps are finitely many; a cylinder's turn freely), none riding, held or in ``pushed`` (moved
+    otherwise); none with articulated bodies (their links move). A function of the poses, computed once each."""
+    geometry = problem.geometry
+    if geometry.bodies:
+        return (), (), ()
+    key = ("stuck_together", tuple(sorted((o, tuple(np.round(P[:3, :4].ravel(), 6))) for o, P in world.objects.items())),
+           tuple(sorted(world.riders)), tuple(sorted(o for o, _ in world.held.values())), tuple(sorted(pushed)))
+    return once(geometry, key, lambda: _stuck_together(problem, world, set(pushed)))
+
+
+def _stuck_together(problem, world, pushed) -> tuple:
+    geometry = problem.geometry
+    held = {o for o, _ in world.held.values()}
+    hits = {}  # object -> for each grasp, for each arm: what the hand touches there
+    for obj, P in world.objects.items():
+        if geometry.specs[obj].shape != "box" or obj in world.riders or obj in held or obj in pushed:
+            continue
+        grasps = _grasp_hits(problem, world, obj, P)
+        if grasps:
+            hits[obj] = grasps
+    members = set(hits)
+    while True:  # drop a member with a grasp that only non-members (they may move) block for some arm
+        out = {o for o in members if not all(all(h & geometry.fixed or h & (members - {o}) for h in arms)
+                                             for arms in hits[o])}
+        if not out:
+            walled = {o for o in members if all(all(h & geometry.fixed for h in arms) for arms in hits[o])}
+            walls = {f for o in members for arms in hits[o] for h in arms for f in h & geometry.fixed}
+            return tuple(sorted(members)), tuple(sorted(walled)), tuple(sorted(walls))
+        members -= out
+
+
+def _grasp_hits(problem, world, obj, P) -> list:
+    """For each grasp of ``obj`` at pose P (the finite set ``_grasp_set``), for each arm: the fixed obstacles
+    and movables that the hand alone, opened as the grasp needs, touches with its tool frame at the grasp,
+    with the padding planning allows there (``tight``); [] as soon as one is clear (the usual answer)."""
+    geometry = problem.geometry
+    out = []
+    with geometry.tight():
+        for T in _grasp_set(problem, obj, P).values():
+            out.append([])
+            for a in geometry.robot.arms:
+                hits = geometry.hand_hits(world.with_gripper(a, geometry.opening(obj, np.linalg.inv(T) @ P)), a, T,
+                                          (obj,), movables=True)
+                if not hits:
+                    return []
+                out[-1].append(frozenset(hits))
+    return out
+
+
+def stuck_sentence(problem, members, walls=()) -> str:
+    """Why no member of ``members`` (``stuck_together``) can ever be picked; ``walls``: the fixed obstacles
+    some of their grasps meet."""
+    geometry = problem.geometry
+    names = f"{', '.join(members[:-1])} and {members[-1]}" if len(members) > 1 else members[0]
+    padded = _padded(geometry) if walls else ""
+    walls = f" or into {', '.join(walls)}" if walls else ""
+    return (f"{names} stand so close that every grasp of each that fits the gripper puts the "
+            f"{geometry.robot.description.name}'s fingers into another of them{walls} where they stand "
+            f"(the gripper opened only {OPEN_CLEARANCE * 100:.0f} cm wider than the block{padded}), so none of them "
+            f"can be picked first and none can ever move")
+
+
+def _grasp_set(problem, obj, P) -> dict:
+    """Every tool pose grasping ``obj`` at pose P that the pick generators can offer, for a box: its side and top
+    grasps from 8 headings (each within a quarter turn of one), deduplicated."""
+    rng = np.random.default_rng(0)
+    poses = {}
+    for heading in np.linspace(-math.pi, math.pi, 8, endpoint=False):
+        for _, T in grasp_poses(problem.geometry, obj, P, heading, _problem_grasps(problem, obj), rng, n_side=1):
+            poses[tuple(np.round(T[:3, :4].ravel(), 6))] = T
+    return poses
 
 
 def _waypoints(geometry, world, arm, T, kind, rng, obj, attempts=10, hand_check=False, splits=0):

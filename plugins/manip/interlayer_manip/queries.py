@@ -102,6 +102,11 @@ class MotionQueries:
         with self.stats.timer("collision_checking"):
             return not self.cw.hand_collides(self.sync(world), arm, T, ignore, movables)
 
+    def hand_hits(self, world, arm, T, ignore=(), movables=False) -> set:
+        """The fixed obstacles (and movables, if asked) that ``hand_free`` finds the hand touching."""
+        with self.stats.timer("collision_checking"):
+            return self.cw.hand_hits(self.sync(world), arm, T, ignore, movables)
+
     def fine_ok(self, world, group, path, acc=None) -> bool:
         """The path is collision-free at the validator's resolution (5x finer than planning).
 

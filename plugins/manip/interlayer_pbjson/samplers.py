@@ -70,25 +70,50 @@ class PBSampler(ClutterSampler):
 
     def pick(self, problem, step, world, rng, limit: int = 5):
         """Clutter's pick; when it finds nothing and no grasp of the object can ever clear the fixed obstacles
-        where it stands (``no_grasp_fits``), a candidate that fails as UNGRASPABLE with that proof."""
-        from interlayer_manip.grasps import no_grasp_fits
+        where it stands (``no_grasp_fits``), a candidate that fails as UNGRASPABLE with that proof; for a box of a
+        set that block each other's every grasp (``stuck_together``), only that candidate, with that proof."""
+        from interlayer_manip.grasps import no_grasp_fits, stuck_sentence
 
+        obj, arm = step.args[0], step.args[1]
+        if world.holder(obj) is None and not world.held.get(arm) and obj in self._stuck_together(problem):
+            # a set of boxes that block each other's every grasp since the start: none of them ever moves
+            members, _, walls = self._at_start(problem)
+            yield Candidate((), {UNGRASPABLE: stuck_sentence(problem, members, walls)}, "no grasp")
+            return
         found = False
         chain = self.chain(problem, world)
         for cand in super().pick(problem, step, world, rng, limit):
             found = True
             # a blocked pick learns its blockers' own blockers too (Reach.blocker_chain)
             yield replace(cand, values={**cand.values, "chain": chain, "put_by": self.put_by})
-        obj, arm = step.args[0], step.args[1]
         if not found and world.holder(obj) is None and not world.held.get(arm) and self._stuck(problem, world, obj):
             yield Candidate((), {UNGRASPABLE: no_grasp_fits(problem, world, obj)}, "no grasp")
 
-    @staticmethod
-    def _stuck(problem, world, obj) -> bool:
-        """No grasp of ``obj`` can ever clear the fixed obstacles where it stands (a floor obstacle may be pushed)."""
+    @classmethod
+    def _stuck(cls, problem, world, obj) -> bool:
+        """No grasp of ``obj`` can ever clear the fixed obstacles where it stands, or obj is one of a set of boxes
+        that block each other's every grasp since the start (a floor obstacle may be pushed)."""
         from interlayer_manip.grasps import hand_blockers
 
-        return obj not in problem.geometry.floor_objects and bool(hand_blockers(problem, world, obj))
+        return obj not in problem.geometry.floor_objects and (
+            bool(hand_blockers(problem, world, obj)) or obj in cls._stuck_together(problem))
+
+    @classmethod
+    def _stuck_together(cls, problem) -> set:
+        """The members of ``stuck_together`` at the start that other members block (those that fixed obstacles
+        alone block are ``hand_blockers``' to prove, as before)."""
+        members, walled, _ = cls._at_start(problem)
+        return set(members) - set(walled)
+
+    @staticmethod
+    def _at_start(problem) -> tuple:
+        """``stuck_together`` at the start: its members never move, so it holds in every world of the run (the
+        facts learned from it outlive resets). Once per run."""
+        from interlayer_manip.grasps import stuck_together
+
+        geometry = problem.geometry
+        return once(geometry, "stuck_at_start",
+                    lambda: stuck_together(problem, geometry.initial_world(), geometry.floor_objects))
 
     def place_on(self, problem, step, world, rng, tries: int = 60):
         from interlayer_manip.generators import _putdown

@@ -71,5 +71,13 @@ def describe(geometry) -> str:
     lines.append("Goals: " + "; ".join(goals))
     for note in extra.get("notes", []):
         lines.append(f"Note: {note}")
+    from types import SimpleNamespace
+
+    from interlayer_manip.grasps import stuck_sentence, stuck_together
+
+    problem = SimpleNamespace(geometry=geometry)  # all that stuck_together reads of a problem
+    members, walled, walls = stuck_together(problem, world, geometry.floor_objects)
+    if set(members) - set(walled):  # what a pick of one of them proves (fixed obstacles alone: when it finds nothing)
+        lines.append(f"Stuck: {stuck_sentence(problem, members, walls)}")
     return "\n".join(lines)
 
