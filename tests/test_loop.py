@@ -668,3 +668,119 @@ def test_the_same_dead_end_with_lasting_facts_three_epochs_in_a_row_gives_up_nam
     assert "3 epochs in a row, each with new samples, ended in the same dead end" in result.reason
     assert "(Obstructs b gp_a a)" in result.reason and "z is bolted down in front of b" in result.reason
     assert result.counts["resets"] == 3
+
+
+HAND = DomainSpec(
+    name="scripted-hand",
+    types={"item": None},
+    continuous_types=("pose",),
+    predicates={"Done": ("item",), "Free": (), "Held": ("item",), "IsPD": ("pose", "item"),
+                "Obstructs": ("item", "pose")},
+    skolems=(Skolem("pd", ("item",), "pose", "IsPD"),),
+    geometric=("Obstructs",),
+    actions=(
+        ActionSpec("grab", (("?x", "item"),), "(and (Free) (not (Done ?x)))", "(and (Held ?x) (not (Free)))",
+                   pose_generator="scripted"),
+        # the put-down moves the item: what was learned about it standing in the way no longer holds; the
+        # facts name the blocker and the pose, not the item in hand (they hold wherever it is)
+        ActionSpec("put", (("?x", "item"), ("?p", "pose")),
+                   "(and (Held ?x) (IsPD ?p ?x) (forall (?o - item) (not (Obstructs ?o ?p))))",
+                   "(and (Done ?x) (Free) (not (Held ?x)) (forall (?q - pose) (not (Obstructs ?x ?q))))",
+                   learn={"obstruction": ("(Obstructs ?blocker ?p)",)}, pose_generator="scripted"),
+    ),
+)
+
+
+class HandGeometry:
+    """World = the (item, action) pairs done; an item moves when it is grabbed or put. ``blocked(item, world)``
+    -> the items in the way of putting ``item`` down."""
+
+    def __init__(self, blocked):
+        self.blocked = blocked
+
+    def initial_world(self):
+        return frozenset()
+
+    def snapshot(self, world):
+        return sorted(world)
+
+    def refine_step(self, step, world, candidate, motion):
+        item = step.args[0]
+        blockers = self.blocked(item, world) if step.action == "put" else ()
+        if blockers:
+            return StepOutcome(False, failure=Failure("obstruction", tuple(blockers)))
+        return StepOutcome(True, world | {(item, step.action)}, [])
+
+    def moved(self, before, after):
+        return {i for i, _ in before ^ after}
+
+
+def _hand_run(host, blocked, goal="(Done a)", first=None, until=None):
+    """``first``: the first task plan (a stub gives it; the real planner every later one); ``until``: the
+    kind of trace event after which the run is interrupted (its result then)."""
+    from interlayer.loop import Interrupted
+    from interlayer.planning import TaskPlanResult
+    from interlayer.trace import Trace
+
+    def stop(event):
+        if event["type"] == until:
+            raise KeyboardInterrupt
+
+    problem = Problem(HAND, {"a": "item", "b": "item"}, frozenset({("Free",)}), goal, HandGeometry(blocked), {})
+    task = host["task_planners"].get("fast-downward").factory({})
+    if first is not None:
+        real = task
+
+        class FirstFixed:
+            calls = 0
+
+            def plan(self, model, state, timeout):
+                self.calls += 1
+                return TaskPlanResult("solved", first, 0.0) if self.calls == 1 else real.plan(model, state, timeout)
+
+            def validate_plan(self, model, state, plan):
+                return real.validate_plan(model, state, plan)
+
+        task = FirstFixed()
+    translators = [("templates", host["failure_translators"].get("templates").factory)]
+    gens = {"grab": generator(), "put": generator()}
+    layer = InterfaceLayer(abstract(problem), task, None, gens, translators, LoopSettings(time_limit=30.0),
+                           trace=Trace([stop]))
+    try:
+        return layer.solve()
+    except Interrupted as stopped:
+        return stopped.result
+
+
+def test_a_dead_end_with_an_item_in_hand_plans_again_from_before_it_was_grabbed(host):
+    """b stands where a goes down. Learned with a in the (only) hand, that is a dead end: b cannot be
+    moved while a is held. The facts name b, which grabbing a did not move, so they hold before that
+    step too: the loop plans again from there (grab b and put it away first) instead of resetting.
+    Mutation: ``_replan_earlier`` returning no plan (Alg. 1 as written: dead ends, resets, timeout)."""
+    def blocked(item, world):
+        return ("b",) if item == "a" and ("b", "put") not in world else ()
+
+    result = _hand_run(host, blocked)
+    assert result.status == "solved", result.reason
+    assert [str(s) for s in result.plan] == ["grab(b)", "put(b, pd_b)", "grab(a)", "put(a, pd_a)"]
+    assert not events(result, "reset") and not events(result, "dead_end")
+    earlier = events(result, "earlier")
+    assert [(e["step"], e["from_step"], e["action"]) for e in earlier] == [(1, 0, "grab(a)")]
+    replan = events(result, "replan")[0]
+    assert replan["fail_step"] == 1 and replan["from_step"] == 0 and replan["prefix"] == []
+
+
+def test_a_dead_end_does_not_plan_from_before_a_step_that_moved_what_the_facts_name(host):
+    """b was put down where it blocks a (the first plan: grab b, put b, grab a, put a, and b can never
+    be grabbed again): the fact about b holds only since b's put-down, so the loop plans again from
+    before grab(a), and never from before b moved (there the fact would be false).
+    Mutation: the ``changed & named`` stop removed (it then plans from before put(b) too)."""
+    def blocked(item, world):
+        return ("b",) if item == "a" and ("b", "put") in world else ()
+
+    first = [GroundStep("grab", ("b",)), GroundStep("put", ("b", "pd_b")), GroundStep("grab", ("a",)),
+             GroundStep("put", ("a", "pd_a"))]
+    result = _hand_run(host, blocked, goal="(and (Done a) (Done b))", first=first, until="dead_end")
+    assert result.status == "interrupted"
+    earlier = events(result, "earlier")
+    assert earlier and {(e["step"], e["from_step"]) for e in earlier} == {(3, 2)}

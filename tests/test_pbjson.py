@@ -1137,6 +1137,28 @@ def test_a_pick_blocked_by_an_object_a_put_down_set_there_makes_that_put_down_wa
     assert ("PDObstructs", "t", "gpfpd_s_right_table_s1") not in m.progress(m.init | facts, step)  # t picked: no wait
 
 
+def test_a_put_down_is_found_where_the_arm_left_the_object_within_ik_tolerance():
+    """The arm that reached a put-down candidate's pose leaves the object up to IK's tolerance (1 mm, 1 deg)
+    off it: the place step that set a blocker there is still named (rearrangement_18, seed 0: put_by keyed
+    on the pose rounded to 0.1 mm missed block0-0's put-down in front of block1-5's pick, the fact recurred
+    eight times and the epoch was reset). An object elsewhere is not.
+    Mutation: PBSampler.put_by matching the rounded pose exactly (as before)."""
+    from interlayer.domain import GroundStep
+    from interlayer.refine import Candidate, stable_seed
+    from interlayer_pbjson.samplers import PBSampler
+
+    sampler = PBSampler(stable_seed(0, 0, PBSampler.__qualname__))
+    c, s = math.cos(0.3), math.sin(0.3)
+    P = np.array([[c, -s, 0, 0.61], [s, c, 0, -0.20], [0, 0, 1, 0.74], [0, 0, 0, 1.0]])
+    place = GroundStep("place", ("s", "right", "table", "s2", "bpfpd_s_right_table_s2", "gpfpd_s_right_table_s2"))
+    list(sampler._noted(place, [Candidate((), {"object_pose": P.tolist()})]))
+    c, s = math.cos(0.3 + math.radians(0.8)), math.sin(0.3 + math.radians(0.8))
+    left = np.array([[c, -s, 0, 0.6107], [s, c, 0, -0.2006], [0, 0, 1, 0.7403], [0, 0, 0, 1.0]])  # where IK left it
+    assert sampler.put_by("s", left) == place
+    assert sampler.put_by("s", P @ np.array([[1, 0, 0, 0.05], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])) is None
+    assert sampler.put_by("t", P) is None
+
+
 def test_the_chain_of_blockers_leaves_out_a_link_that_closes_a_cycle(tmp_path):
     """rearrangement_20 with the chain: block0-9's pick was blocked by block0-3, whose best grasp had block0-9
     (and block0-4, whose best grasp had block0-3) in the way. Learned together, each waits for the other: the

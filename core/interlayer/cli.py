@@ -53,7 +53,10 @@ def progress_printer(verbose: bool):
                 + f" {', '.join(labels.get(o, o) for o in e['failure']['objects'])}"
                 f" -> learned {relabel(', '.join(e['facts']), labels)}")
         elif kind == "replan":
-            log(f"{t} replanned from step {e['fail_step']}, kept a prefix of {len(e['prefix'])} action(s)")
+            log(f"{t} replanned from step {e.get('from_step', e['fail_step'])}, kept a prefix of {len(e['prefix'])} action(s)")
+        elif kind == "earlier":
+            log(f"{t} the updated state at step {e['step']} has no plan: planning from before step {e['from_step']} "
+                f"{relabel(e['action'], labels)} with the same facts")
         elif kind == "dead_end":
             why = "the task planner timed out on it" if e.get("status") == "timeout" else "it has no plan"
             log(f"{t} the updated state at step {e['step']} is a dead end ({why}); trying the next partial refinement")

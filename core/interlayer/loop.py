@@ -10,7 +10,7 @@ from .abstraction import TaskModel
 from .domain import GroundStep
 from .names import relabel
 from .deadline import Deadline, DeadlineExceeded
-from .refine import NO_CANDIDATES, EpochState, GiveUp, Infeasible, PoseGenerator, Refinement, Refiner, drawn_within, stable_seed
+from .refine import NO_CANDIDATES, ROBOT_MOVED, EpochState, GiveUp, Infeasible, PoseGenerator, Refinement, Refiner, drawn_within, stable_seed
 from .result import Result
 from .trace import Stats, Trace
 from .watchdog import NoProgress, ProgressWatch
@@ -28,6 +28,8 @@ class Interrupted(KeyboardInterrupt):
 # (e.g. picking the blocker) keeps bringing it back (putting the blocker down in the way again), and
 # replanning on it once more would only repeat that cycle.
 RELEARN_LIMIT = 2
+# Task-planner calls one dead end may spend on planning from before earlier steps (InterfaceLayer._replan_earlier)
+EARLIER_LIMIT = 3
 
 
 @dataclass(frozen=True)
@@ -181,6 +183,34 @@ class InterfaceLayer:
         for s in plan:
             states.append(self.model.progress(states[-1], s))
         return states
+
+    def _replan_earlier(self, partial, facts, true, false, states, world0):
+        """A dead end at the failing step (e.g. an object in hand that can be put down nowhere): plan again
+        with the same facts from before an earlier step that moved an object, latest first, while no step
+        in between moved an object the facts name (they were learned where those stood, and hold there
+        too). ``(plan, step, state)``, or ``(None, fail step, state)`` when there is none. Needs the
+        geometry's ``moved``; at most EARLIER_LIMIT task-planner calls."""
+        f = partial.fail_step
+        moved = getattr(self.geometry, "moved", None)
+        if moved is None:
+            return None, f, None
+        named = {a for fact in facts for a in _atom(fact)[1:]}
+        calls = 0
+        for g in range(f - 1, -1, -1):
+            changed = moved(_world_at(partial.outcomes, g, world0), _world_at(partial.outcomes, g + 1, world0))
+            if changed & named:
+                break  # before this step the facts' objects stood elsewhere
+            if not changed - {ROBOT_MOVED}:
+                continue  # it only moved the robot: planning from before it changes nothing
+            state = (states[g] - false) | true
+            self.trace.emit("earlier", step=f, from_step=g, action=str(self.plan[g]))
+            plan = self.call_task_planner(state, g)
+            if plan is not None:
+                return plan, g, state
+            calls += 1
+            if calls >= EARLIER_LIMIT or self._out_of_time():
+                break
+        return None, f, None
 
     def _on_attempt(self, step, candidate, outcome, partial, cached):
         self.stats.count("refinement_attempts")
@@ -337,15 +367,18 @@ class InterfaceLayer:
                 self.times_learned.update(facts)
                 self.trace.emit("failure", step=f, action=str(self.plan[f]), candidate=partial.candidate.label,
                                 failure=partial.failure.to_json(related=True), facts=shown, world=self.geometry.snapshot(partial.world))
-                new_plan = self.call_task_planner(state, f)  # line 10
+                new_plan, g = self.call_task_planner(state, f), f  # line 10
+                if new_plan is None and not self._out_of_time():  # beyond the paper: plan from before the steps
+                    new_plan, g, state = self._replan_earlier(partial, facts, true, false, states, world0)
                 if new_plan is not None:  # lines 11-13
                     self.replans += 1
                     old = self.plan
-                    self.plan = old[:f] + new_plan
-                    states = states[:f] + self.progress_all(state, new_plan)
-                    step, prefix, world = f, partial.outcomes, partial.world
-                    self.trace.emit("replan", fail_step=f, prefix=plan_json(old[:f]), new_plan=plan_json(new_plan),
-                                    plan=plan_json(self.plan))
+                    self.plan = old[:g] + new_plan
+                    states = states[:g] + self.progress_all(state, new_plan)
+                    step, prefix = g, {k: v for k, v in partial.outcomes.items() if k < g}
+                    world = partial.world if g == f else _world_at(partial.outcomes, g, world0)
+                    self.trace.emit("replan", fail_step=f, prefix=plan_json(old[:g]), new_plan=plan_json(new_plan),
+                                    plan=plan_json(self.plan), **({"from_step": g} if g < f else {}))
                     break
                 self.trace.emit("dead_end", step=f, facts=shown, status=self.last_task_status)
                 ends.update(_predicate(a) for a in facts)
@@ -372,6 +405,15 @@ class InterfaceLayer:
                 self.watch.reset(traj_count, self.plan, same if dead_end and self.kept else None)
             self.watch.check_trace(len(self.trace.events))
         return "timeout", f"the time limit of {self.settings.time_limit:g} s was reached before a refinement was found", None
+
+
+def _atom(literal):
+    return literal.arg if isinstance(literal, logic.Not) else literal
+
+
+def _world_at(outcomes: dict, k: int, world0):
+    """The world before step k of a refined prefix that starts at step 0 in ``world0``."""
+    return outcomes[k - 1].world if k else world0
 
 
 def _predicate(literal) -> str:

@@ -679,9 +679,14 @@ class _Explainer:
                         + ", ".join(f"<code>{escape(step_str(s, self.run.labels))}</code>" for s in prefix)) if prefix \
                     else "no prefix kept (the failure was at the first step)"
                 keep_ref = " (their motions are reused unchanged)" if prefix else ""
-                html.append(f'<div class="ev replan">{t}<h3>Replanned from step {e.get("fail_step")}</h3>{kept}; '
-                            f'the new plan has {len(plan)} step(s) and refinement resumes at step {e.get("fail_step")}'
+                start = e.get("from_step", e.get("fail_step"))
+                html.append(f'<div class="ev replan">{t}<h3>Replanned from step {start}</h3>{kept}; '
+                            f'the new plan has {len(plan)} step(s) and refinement resumes at step {start}'
                             f"{keep_ref}.</div>")
+            elif kind == "earlier":
+                html.append(f'<div class="ev dead">{t}<h3>No plan at step {e.get("step")}: planning from before step '
+                            f'{e.get("from_step")}</h3>The same facts, from before <code>{escape(self.shown(e.get("action", "")))}</code> '
+                            "(no step since moved an object they name).</div>")
             elif kind == "dead_end":
                 html.append(f'<div class="ev dead">{t}<h3>Dead end at step {e.get("step")}</h3>The state with '
                             + ", ".join(f'<span class="fact">{escape(self.shown(f))}</span>' for f in e.get("facts") or [])

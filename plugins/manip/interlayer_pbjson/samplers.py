@@ -42,7 +42,7 @@ class PBSampler(ClutterSampler):
         # (obj, arm) -> (obj's pose key, {other object: (its pose key, whether it was in the way of obj's best grasp)}),
         # from the last ranking of obj's grasps in which the other object stood there
         self.best_hits: dict = {}
-        self.put: dict = {}  # (object, its pose key) -> the place step whose put-down candidate sets it there
+        self.put: dict = {}  # object -> [(a pose, the place step whose put-down candidate sets it there)], latest last
 
     @staticmethod
     def _goal_only(geometry, obj, surf) -> bool:
@@ -61,12 +61,15 @@ class PBSampler(ClutterSampler):
     def _noted(self, step, cands):
         for cand in cands:
             if "object_pose" in cand.values:
-                self.put[(step.args[0], _pose_key(cand.values["object_pose"]))] = step
+                self.put.setdefault(step.args[0], []).append((np.asarray(cand.values["object_pose"]), step))
             yield cand
 
     def put_by(self, obj, P):
-        """The place step (this epoch's) whose put-down sets obj at pose P, or None."""
-        return self.put.get((obj, _pose_key(P)))
+        """The place step (this epoch's) whose put-down sets obj at pose P, or None. Within IK's tolerance: the
+        arm that reached the candidate's pose leaves the object up to a millimetre and a degree off it."""
+        from interlayer_manip.world import _same_place
+
+        return next((step for Q, step in reversed(self.put.get(obj, ())) if _same_place(Q, P)), None)
 
     def pick(self, problem, step, world, rng, limit: int = 5):
         """Clutter's pick; when it finds nothing and no grasp of the object can ever clear the fixed obstacles
