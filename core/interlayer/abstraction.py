@@ -28,6 +28,15 @@ class TaskAction:
     dropped: tuple[tuple[str, str, logic.Pred], ...]  # (variable, type, defining atom)
 
 
+_MEMO = 4096  # entries per memo (each holds a state: a few MB in all)
+
+
+def _remember(memo: dict, key, value) -> None:
+    if len(memo) >= _MEMO:
+        memo.clear()
+    memo[key] = value
+
+
 @dataclass
 class TaskModel:
     """Everything the task planner sees; built once per problem."""
@@ -49,6 +58,10 @@ class TaskModel:
     labels: dict = field(default_factory=dict)  # symbol -> the name a person reads (objects and their references)
     _by_type: dict = field(default_factory=dict)
     _ordinals: dict = field(default_factory=dict)
+    # (state, step) -> applicable / progressed state: the model never changes once built, and plan checks
+    # and the shortcut pass replay the same prefixes again and again (a fifth of a big file's Python time)
+    _applicable: dict = field(default_factory=dict, repr=False, compare=False)
+    _progressed: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def init(self) -> frozenset:
@@ -91,12 +104,22 @@ class TaskModel:
         return GroundStep(step.action, tuple(binding[v] for v, _ in params))
 
     def applicable(self, state: frozenset, step: GroundStep) -> bool:
-        _, pre, _ = self.full_actions[step.action]
-        return logic.holds(pre, state, self.binding(step), self.objects_of)
+        key = (state, step)
+        out = self._applicable.get(key)
+        if out is None:
+            _, pre, _ = self.full_actions[step.action]
+            out = logic.holds(pre, state, self.binding(step), self.objects_of)
+            _remember(self._applicable, key, out)
+        return out
 
     def progress(self, state: frozenset, step: GroundStep) -> frozenset:
-        _, _, eff = self.full_actions[step.action]
-        return logic.apply_effect(eff, state, self.binding(step), self.objects_of)
+        key = (state, step)
+        out = self._progressed.get(key)
+        if out is None:
+            _, _, eff = self.full_actions[step.action]
+            out = logic.apply_effect(eff, state, self.binding(step), self.objects_of)
+            _remember(self._progressed, key, out)
+        return out
 
     def goal_holds(self, state: frozenset) -> bool:
         return logic.holds(self.goal, state, {}, self.objects_of)
