@@ -31,10 +31,16 @@ class TaskAction:
 _MEMO = 4096  # entries per memo (each holds a state: a few MB in all)
 
 
-def _remember(memo: dict, key, value) -> None:
-    if len(memo) >= _MEMO:
-        memo.clear()
-    memo[key] = value
+def _memoised(memo: dict, state: frozenset, step: GroundStep, compute):
+    """``compute(state, step)``, once per (state, step) while it stays in ``memo``."""
+    key = (state, step)
+    out = memo.get(key)
+    if out is None:
+        out = compute(state, step)
+        if len(memo) >= _MEMO:
+            memo.clear()
+        memo[key] = out
+    return out
 
 
 @dataclass
@@ -104,22 +110,18 @@ class TaskModel:
         return GroundStep(step.action, tuple(binding[v] for v, _ in params))
 
     def applicable(self, state: frozenset, step: GroundStep) -> bool:
-        key = (state, step)
-        out = self._applicable.get(key)
-        if out is None:
-            _, pre, _ = self.full_actions[step.action]
-            out = logic.holds(pre, state, self.binding(step), self.objects_of)
-            _remember(self._applicable, key, out)
-        return out
+        return _memoised(self._applicable, state, step, self._precondition_holds)
 
     def progress(self, state: frozenset, step: GroundStep) -> frozenset:
-        key = (state, step)
-        out = self._progressed.get(key)
-        if out is None:
-            _, _, eff = self.full_actions[step.action]
-            out = logic.apply_effect(eff, state, self.binding(step), self.objects_of)
-            _remember(self._progressed, key, out)
-        return out
+        return _memoised(self._progressed, state, step, self._effect_applied)
+
+    def _precondition_holds(self, state: frozenset, step: GroundStep) -> bool:
+        _, pre, _ = self.full_actions[step.action]
+        return logic.holds(pre, state, self.binding(step), self.objects_of)
+
+    def _effect_applied(self, state: frozenset, step: GroundStep) -> frozenset:
+        _, _, eff = self.full_actions[step.action]
+        return logic.apply_effect(eff, state, self.binding(step), self.objects_of)
 
     def goal_holds(self, state: frozenset) -> bool:
         return logic.holds(self.goal, state, {}, self.objects_of)
