@@ -61,3 +61,37 @@ def test_non_uniform_domains_are_reported():
 def test_unknown_predicate_is_a_clear_domain_error():
     with pytest.raises(DomainError, match="Unknown predicate 'Dome'"):
         abstract(_toy_domain("(and (IsGP ?p ?x) (Dome ?x))", "(Done ?x)"))
+
+
+def test_a_step_is_applied_to_a_state_once_and_the_replays_reuse_it(monkeypatch):
+    """Plan checks and the shortcut pass replay the same prefixes: the model evaluates a precondition and
+    progresses a state once per (state, step), and the answers are those of the logic itself."""
+    from interlayer import logic
+    from interlayer.planning import check_plan
+    from interlayer.shortcut import unneeded_steps
+
+    model = abstract(make_problem({"obstructions": 1, "s_occupied": False}, 0))
+    plan = [model.reintroduce("pick", ("b2", "init_pose", "gp_b2")),
+            model.reintroduce("place", ("b2", "free", "gp_b2", "pdp_b2_free")),
+            model.reintroduce("pick", ("b1", "pdp_b2_free", "gp_b1")),
+            model.reintroduce("place", ("b1", "S", "gp_b1", "pdp_b1_S"))]
+    calls = {"holds": 0, "apply_effect": 0}
+    for name in calls:
+        def counted(*args, _f=getattr(logic, name), _n=name):
+            calls[_n] += 1
+            return _f(*args)
+        monkeypatch.setattr(logic, name, counted)
+    assert check_plan(model, model.init, plan) == ""
+    first = dict(calls)
+    assert first["holds"] >= len(plan) and first["apply_effect"] == len(plan)
+    assert check_plan(model, model.init, plan) == ""  # the same replay: every step from the memo, the goal again
+    assert calls == {"holds": first["holds"] + 1, "apply_effect": first["apply_effect"]}
+    assert unneeded_steps(plan, model, model.init) == []  # each step enables the next
+    assert calls["apply_effect"] < 2 * first["apply_effect"]  # the prefixes it replays come from the memo
+    state = model.init
+    for step in plan:  # the memo's answers are the logic's own
+        _, pre, eff = model.full_actions[step.action]
+        assert model.applicable(state, step) is logic.holds(pre, state, model.binding(step), model.objects_of)
+        after = model.progress(state, step)
+        assert after == logic.apply_effect(eff, state, model.binding(step), model.objects_of)
+        state = after

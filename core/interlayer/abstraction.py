@@ -28,6 +28,21 @@ class TaskAction:
     dropped: tuple[tuple[str, str, logic.Pred], ...]  # (variable, type, defining atom)
 
 
+_MEMO = 4096  # entries per memo (each holds a state: a few MB in all)
+
+
+def _memoised(memo: dict, state: frozenset, step: GroundStep, compute):
+    """``compute(state, step)``, once per (state, step) while it stays in ``memo``."""
+    key = (state, step)
+    out = memo.get(key)
+    if out is None:
+        out = compute(state, step)
+        if len(memo) >= _MEMO:
+            memo.clear()
+        memo[key] = out
+    return out
+
+
 @dataclass
 class TaskModel:
     """Everything the task planner sees; built once per problem."""
@@ -49,6 +64,10 @@ class TaskModel:
     labels: dict = field(default_factory=dict)  # symbol -> the name a person reads (objects and their references)
     _by_type: dict = field(default_factory=dict)
     _ordinals: dict = field(default_factory=dict)
+    # (state, step) -> applicable / progressed state: the model never changes once built, and plan checks
+    # and the shortcut pass replay the same prefixes again and again (a fifth of a big file's Python time)
+    _applicable: dict = field(default_factory=dict, repr=False, compare=False)
+    _progressed: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def init(self) -> frozenset:
@@ -91,10 +110,16 @@ class TaskModel:
         return GroundStep(step.action, tuple(binding[v] for v, _ in params))
 
     def applicable(self, state: frozenset, step: GroundStep) -> bool:
+        return _memoised(self._applicable, state, step, self._precondition_holds)
+
+    def progress(self, state: frozenset, step: GroundStep) -> frozenset:
+        return _memoised(self._progressed, state, step, self._effect_applied)
+
+    def _precondition_holds(self, state: frozenset, step: GroundStep) -> bool:
         _, pre, _ = self.full_actions[step.action]
         return logic.holds(pre, state, self.binding(step), self.objects_of)
 
-    def progress(self, state: frozenset, step: GroundStep) -> frozenset:
+    def _effect_applied(self, state: frozenset, step: GroundStep) -> frozenset:
         _, _, eff = self.full_actions[step.action]
         return logic.apply_effect(eff, state, self.binding(step), self.objects_of)
 

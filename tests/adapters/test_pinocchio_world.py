@@ -425,3 +425,49 @@ def test_an_arms_reach_bounds_every_body_it_moves(name):
                     worst = max(worst, np.linalg.norm(gd.oMg[k].act(np.array(corner)) - centre))
     assert worst <= radius
     assert worst > 0.6 * radius  # not a vacuous bound
+
+
+@pytest.mark.parametrize("holding", [False, True], ids=["free-hands", "holding"])
+def test_a_groups_pairs_are_those_a_group_joint_lies_between(robot, holding):
+    """A group's query keeps exactly the pairs whose two geometries (robot links by their joint, held
+    objects by the holding wrist, the rest on the universe) have a group joint in one support and not the
+    other: here from the model's supports, pair by pair, for every group."""
+    world = (holding_world if holding else table_world)(robot)
+    world.in_collision(robot.neutral_q())  # builds the geometry model
+    supports, nr = robot.model.supports, world._n_robot
+    joint = {g: int(world._robot_joint[g]) for g in range(nr)}
+    for o in world.objects():
+        gid = world._gm.getGeometryId(o.name)
+        joint[gid] = world._tool_joint[o.held_by] if o.held_by else 0
+    for group in robot.groups:
+        ids = set(robot.group(group).joint_ids)
+        moved = {g: frozenset(ids.intersection(supports[j])) if j else frozenset() for g, j in joint.items()}
+        changes = np.array([moved[int(a)] != moved[int(b)] for a, b in zip(world._pa, world._pb)])
+        for mode, ignore, movables in (("check", frozenset(), True), ("check", frozenset({"cyl3"}), False),
+                                       ("movables", frozenset(), True)):
+            whole = world._mask(mode, None, ignore, movables)
+            assert (world._mask(mode, group, ignore, movables) == (whole & changes)).all(), (group, mode)
+        assert changes.any() and not changes.all()
+
+
+def test_a_slot_switched_between_query_kinds_activates_exactly_their_pairs(robot):
+    """A slot going from one query kind to another flips the pairs that differ, one call each when they
+    are few, the whole mask at once when they are many: either way its GeometryData ends with exactly
+    the new kind's pairs active."""
+    from interlayer_pinocchio.pairs import _Slot
+
+    world = holding_world(robot)
+    world.in_collision(robot.neutral_q())
+    keys = [("check", None, frozenset(), True), ("movables", None, frozenset(), True),
+            ("check", "left_arm", frozenset({"cyl3"}), False), ("check", "base", frozenset(), True),
+            ("check", None, frozenset({"cyl1"}), True), ("check", "right_gripper", frozenset(), True)]
+    slot = _Slot(world._model, world._gm, world._n_robot)
+    rng = np.random.default_rng(3)
+    flips = []
+    for k in rng.integers(len(keys), size=40):
+        v = world._variant(keys[k])
+        flips.append(int((slot.mask != v.mask).sum()))
+        slot.apply(v, None)
+        assert list(slot.gd.activeCollisionPairs) == v.mask.tolist(), keys[k]
+    third = len(slot.mask) // 3
+    assert any(0 < f <= third for f in flips) and any(f > third for f in flips)  # both ways taken

@@ -91,6 +91,8 @@ class JointGroup:
 
     def write(self, q: np.ndarray, values) -> None:
         """Write ``values`` into ``q`` in place (hot path: plain loops beat numpy on 7 floats)."""
+        if type(values) is np.ndarray:
+            values = values.tolist()  # Python floats: the same values, read faster than numpy scalars
         for qi, di, mult in self._linear:
             q[qi] = values[di] * mult
         for qi, di in self._angular:
@@ -108,8 +110,13 @@ class JointGroup:
 
     def within_bounds(self, values, tol: float = 1e-9) -> bool:
         """True if every non-circular value lies within [lower, upper] (+tol)."""
-        # hot path (every collision check of a planner): plain comparisons beat numpy on 7 floats
-        return all(lo - tol <= values[i] <= hi + tol for i, lo, hi in self._bounded)
+        # hot path (every collision check of a planner): plain comparisons of Python floats beat numpy on 7
+        if type(values) is np.ndarray:
+            values = values.tolist()
+        for i, lo, hi in self._bounded:
+            if not lo - tol <= values[i] <= hi + tol:
+                return False
+        return True
 
     @cached_property
     def _bounded(self) -> tuple[tuple[int, float, float], ...]:

@@ -56,11 +56,15 @@ class _Slot:
         self.off = np.zeros(gm.ngeoms, dtype=bool)
 
     def apply(self, variant: _Variant, far) -> None:
-        for k in np.flatnonzero(self.mask != variant.mask).tolist():
-            if variant.mask[k]:
-                self.gd.activateCollisionPair(k)
-            else:
-                self.gd.deactivateCollisionPair(k)
+        flips = np.flatnonzero(self.mask != variant.mask).tolist()
+        if len(flips) > len(self.mask) // 3:  # many: one assignment of the whole mask costs less than a call each
+            self.gd.activeCollisionPairs = variant.mask.tolist()  # what (de)activateCollisionPair set
+        else:
+            for k in flips:
+                if variant.mask[k]:
+                    self.gd.activateCollisionPair(k)
+                else:
+                    self.gd.deactivateCollisionPair(k)
         if variant.margin != self.margin:  # also widens the broad phase's boxes by as much
             n = self.gm.ngeoms
             self.gd.setSecurityMargins(self.gm, np.full((n, n), variant.margin), True, True)
@@ -232,15 +236,23 @@ class Pairs:
             # A pair can only change if a group joint lies on the kinematic path between
             # its two geometries, i.e. in exactly one of their supports (root -> parent
             # joint; empty for the environment).  Moving the base thus skips self pairs.
-            group_joints = self.robot.group(group).joint_ids
-            supports = self._model.supports
-            below = np.zeros((n, len(group_joints)), dtype=bool)
-            for gid in range(n):
-                if joint[gid] > 0:
-                    support = set(supports[int(joint[gid])])
-                    below[gid] = [j in support for j in group_joints]
+            below = self._below(group)[joint]
             mask &= (below[a] != below[b]).any(axis=1)
         return mask
+
+    def _below(self, group: str) -> np.ndarray:
+        """``[j, k]``: the group's k-th joint supports joint j (lies on its path from the root); the
+        universe's row is all False. Fixed by the robot's model: built once per group."""
+        table = self._supported.get(group)
+        if table is None:
+            group_joints = self.robot.group(group).joint_ids
+            supports = self._model.supports
+            table = np.zeros((self._model.njoints, len(group_joints)), dtype=bool)
+            for i in range(1, self._model.njoints):
+                support = set(supports[i])
+                table[i] = [j in support for j in group_joints]
+            self._supported[group] = table
+        return table
 
     def _colliding_pairs(self, q, key) -> list[tuple[int, int]]:
         """(geom a, geom b) pairs in collision: broadphase candidates, then exact narrow phase."""

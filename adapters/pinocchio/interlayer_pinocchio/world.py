@@ -95,6 +95,7 @@ class CollisionWorld(Distances, Pairs):
         self._request = coal.CollisionRequest()
         self._local_boxes = {}  # id(geometry) -> (its local AABB's corners, geometry)
         self._bounds = {}  # group -> (version, motion_bound)
+        self._supported = {}  # group -> which joints each of its joints supports (Pairs._below)
         self._hands = {}  # (arm, finger angle) -> [(hand geometry, its pose in the tool frame)]
         self._arms = robot.arms
         self._tool_joint = {arm: robot.model.frames[robot.tool_frame_id(arm)].parentJoint for arm in robot.arms}
