@@ -136,7 +136,7 @@ class ManipulationGeometry(MotionQueries, Reach, Refiners, Articulated, Output):
         within IK's tolerance of the same pose is the same place: another grasp's put-down at a goal pose),
         articulated bodies whose joints do, and ``ROBOT_MOVED`` if the robot's base, arms or grippers do."""
         a, b = before.objects, after.objects
-        out = {o for o in a.keys() | b.keys() if o not in a or o not in b or not _same_place(a[o], b[o])}
+        out = {o for o in a.keys() | b.keys() if o not in a or o not in b or not same_place(a[o], b[o])}
         a, b = before.joints, after.joints
         out |= {o for o in a.keys() | b.keys() if o not in a or o not in b or not np.array_equal(a[o], b[o])}
         if (not np.array_equal(before.base, after.base) or before.grippers != after.grippers
@@ -230,7 +230,9 @@ class ManipulationGeometry(MotionQueries, Reach, Refiners, Articulated, Output):
 SAME_PLACE = (0.002, 0.035)
 
 
-def _same_place(P, Q) -> bool:
+def same_place(P, Q) -> bool:
+    """Poses P and Q within IK's tolerance of each other (SAME_PLACE): an arm that reached a put-down leaves the
+    object that close to it."""
     return P is Q or (np.allclose(P[:3, 3], Q[:3, 3], rtol=0, atol=SAME_PLACE[0])
                       and np.allclose(P[:3, :3], Q[:3, :3], rtol=0, atol=SAME_PLACE[1]))
 

@@ -67,9 +67,9 @@ class PBSampler(ClutterSampler):
     def put_by(self, obj, P):
         """The place step (this epoch's) whose put-down sets obj at pose P, or None. Within IK's tolerance: the
         arm that reached the candidate's pose leaves the object up to a millimetre and a degree off it."""
-        from interlayer_manip.world import _same_place
+        from interlayer_manip.world import same_place
 
-        return next((step for Q, step in reversed(self.put.get(obj, ())) if _same_place(Q, P)), None)
+        return next((step for Q, step in reversed(self.put.get(obj, ())) if same_place(Q, P)), None)
 
     def pick(self, problem, step, world, rng, limit: int = 5):
         """Clutter's pick; when it finds nothing and no grasp of the object can ever clear the fixed obstacles
