@@ -323,8 +323,10 @@ class PBSampler(ClutterSampler):
 
         def search(spots, tries, z=None, off_line=False, avoid=frozenset()):
             for rank, (x, y, pose_at, heading, *grid) in enumerate(spots):
-                if rank >= 3 * limit and found:
-                    break  # past the best spots, only search on while nothing at all was found
+                if rank >= 3 * limit and found and (clear() or rank >= SEARCH_ON * limit):
+                    # past the best spots, search on while every put-down found has objects on its lowering or
+                    # retreat (rearrangement_18: each such one failed on them, nearly every clear one succeeded)
+                    break
                 # a pose of putdown_grid: checked with the line padding, as the release is, and let down vertically
                 # if need be, as the grid allowed
                 tight = bool(grid and grid[0])
@@ -338,8 +340,11 @@ class PBSampler(ClutterSampler):
                     hit |= overlap["hits"]  # objects where it is put
                     found.append(((len(hit), len(sweep)), rank, base, x, y, P, T, lower, back, hit))
                     break
-                if len(found) >= limit or (found and found[-1][0] == (0, 0) and len(found) >= 2):
+                if (len(found) >= limit and clear()) or (found and found[-1][0] == (0, 0) and len(found) >= 2):
                     break
+
+        def clear():  # a put-down found with nothing where it lowers, lets go and retreats
+            return any(not f[0][0] for f in found)
 
         search(spots, per_spot)
         if not found and geometry.robot.mobile:
@@ -371,7 +376,7 @@ class PBSampler(ClutterSampler):
             yield Candidate((), {STUCK: (objs, f"put-down: every one found meets {', '.join(objs)}, which no grasp "
                                                f"can move")}, "blocked put-down")
             return
-        for nhit, _, base, x, y, P, T, lower, back, _ in kept:
+        for nhit, _, base, x, y, P, T, lower, back, _ in kept[:limit]:
             yield Candidate((base, tuple(reversed(lower)), tuple(back[1:])),
                             {bp_ref: list(base), pd_ref: T.tolist(), "tloc": (obj, P), "object_pose": P.tolist()},
                             f"{obj} at {fmt((x, y))} from base {fmt(base)} ({nhit[0]} + {nhit[1]} objects in the way)")
@@ -456,6 +461,7 @@ PUT_GRID, PUT_TURN = 0.0125, math.radians(5)  # m, rad: putdown_grid's object po
 # putdown_grid's poses a put-down search tries after its random spots, at most, and the bases drawn for each (the arm
 # reaches such a pose from few: real_regrasp, 2 % of the reach map's bases)
 GRID_SPOTS, GRID_TRIES = 12, 24
+SEARCH_ON = 6  # a put-down search tries up to this many times its limit of spots while each one found has objects in the way
 TALL = 0.3  # m: a vertical lowering and retreat (vertical_putdown) lift the hand over posts this much above the spot
 OVER = 0.02  # m: a put-down kept clear of an object no grasp can move lifts what it holds this far over its top
 AROUND = math.pi / 2  # rad: a put-down kept clear of an object no grasp can move turns the tool this far from the base's bearing
