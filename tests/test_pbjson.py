@@ -858,8 +858,10 @@ def test_a_put_down_keeps_off_the_footprints_of_goal_poses_not_circles_around_th
 def test_a_put_down_search_goes_on_past_its_best_spots_while_each_one_found_has_an_object_in_the_way(tmp_path):
     """Issue 20 (rearrangement_18, seed 0: of 195 temporary put-downs tried, the 100 offered with an object on
     their lowering or retreat all failed on it, 92 of the 95 without one succeeded): the best spots (here on k0)
-    give only put-downs that meet k0; the search goes on to the next spots and offers the clear one first.
-    Mutation: the search stops past its best spots once anything was found (as before): only put-downs on k0."""
+    give only put-downs that meet k0; the search goes on to the next spots and offers the clear one first; not
+    past spots that are not clear of objects themselves (``free``).
+    Mutations: the search stops past its best spots once anything was found (as before): only put-downs on k0;
+    the search goes on whatever ``free`` says: the clear one where free=0."""
     from interlayer.refine import stable_seed
     from interlayer_manip.generators import _putdown
     from interlayer_manip.grasps import grasp_poses
@@ -876,11 +878,17 @@ def test_a_put_down_search_goes_on_past_its_best_spots_while_each_one_found_has_
     held = replace(w, held={"left": ("s", G)}, objects={"k0": w.objects["k0"], **away})  # k0 at (-0.12, -0.16)
     z = float(P[2, 3])
     spots = [(x, y, lambda h, x=x, y=y: _putdown(G, x, y, z, h)[0], None) for x, y in [(-0.12, -0.16)] * 3 + [(0.12, 0.16)]]
-    found = list(PBSampler(stable_seed(0, 0, "PBSampler"))._putdowns(
-        p, held, "s", "left", "bp", "gp", spots, z, np.random.default_rng(0), limit=1))
-    assert found
-    first = np.asarray(found[0].values["object_pose"])
-    assert np.hypot(first[0, 3] - 0.12, first[1, 3] - 0.16) < 0.01 and "(0 + " in found[0].label, found[0].label
+    def first(free):
+        found = list(PBSampler(stable_seed(0, 0, "PBSampler"))._putdowns(
+            p, held, "s", "left", "bp", "gp", spots, z, np.random.default_rng(0), limit=1, free=free))
+        assert found
+        return np.asarray(found[0].values["object_pose"]), found[0].label
+
+    P, label = first(len(spots))
+    assert np.hypot(P[0, 3] - 0.12, P[1, 3] - 0.16) < 0.01 and "(0 + " in label, label
+    # spots not clear of objects (free=0: as on a surface objects fill, transporter) are not searched on
+    P, label = first(0)
+    assert np.hypot(P[0, 3] + 0.12, P[1, 3] + 0.16) < 0.01, label
 
 
 def test_a_pick_is_ranked_by_what_its_raise_drags_the_held_object_through(tmp_path):

@@ -182,7 +182,8 @@ class PBSampler(ClutterSampler):
 
         found = False
         for cand in self._putdowns(problem, world, obj, arm, step.args[4], step.args[5],
-                                   [(x, y, lambda h, x=x, y=y, c=c: pose_at(x, y, h, c), None) for x, y, c in spots], z, rng):
+                                   [(x, y, lambda h, x=x, y=y, c=c: pose_at(x, y, h, c), None) for x, y, c in spots], z, rng,
+                                   free=sum(c for _, _, c in spots)):
             found = True
             yield cand
         if found or not self._goal_only(geometry, obj, surf) or o.shape != "box":
@@ -293,10 +294,13 @@ class PBSampler(ClutterSampler):
         return sorted(grasps, key=lambda g: not any(_same_grasp(problem.geometry, obj, np.linalg.inv(g[1]) @ P, F)
                                                     for F in fits))
 
-    def _putdowns(self, problem, world, obj, arm, bp_ref, pd_ref, spots, z, rng, limit: int = 4, per_spot: int = 4):
+    def _putdowns(self, problem, world, obj, arm, bp_ref, pd_ref, spots, z, rng, limit: int = 4, per_spot: int = 4,
+                  free: int = 0):
         """Candidates (base, lowering, retreat) for the object poses ``spots`` offers: (x, y, pose(heading),
         the tool's heading if the pose fixes it) with heading the direction from the base to (x, y), the
-        object's centre ``z`` above the floor; fewest objects in the way first."""
+        object's centre ``z`` above the floor; fewest objects in the way first. The first ``free`` spots are
+        clear of other objects: the search goes on through them while every put-down found has one in the way
+        (spots on objects, as on a surface they fill, would only find more such put-downs)."""
         geometry = problem.geometry
 
         overlap = {}  # the objects where the last pose offered stands (putdown_motion asks once per try)
@@ -323,7 +327,7 @@ class PBSampler(ClutterSampler):
 
         def search(spots, tries, z=None, off_line=False, avoid=frozenset()):
             for rank, (x, y, pose_at, heading, *grid) in enumerate(spots):
-                if rank >= 3 * limit and found and (clear() or rank >= SEARCH_ON * limit):
+                if rank >= 3 * limit and found and (clear() or not on(rank)):
                     # past the best spots, search on while every put-down found has objects on its lowering or
                     # retreat (rearrangement_18: each such one failed on them, nearly every clear one succeeded)
                     break
@@ -340,11 +344,15 @@ class PBSampler(ClutterSampler):
                     hit |= overlap["hits"]  # objects where it is put
                     found.append(((len(hit), len(sweep)), rank, base, x, y, P, T, lower, back, hit))
                     break
-                if (len(found) >= limit and clear()) or (found and found[-1][0] == (0, 0) and len(found) >= 2):
+                if (len(found) >= limit and (clear() or not on(rank + 1))) or \
+                        (found and found[-1][0] == (0, 0) and len(found) >= 2):
                     break
 
         def clear():  # a put-down found with nothing where it lowers, lets go and retreats
             return any(not f[0][0] for f in found)
+
+        def on(rank):  # the search may go on to this spot for a clear put-down: one of the first ``free``, within SEARCH_ON
+            return rank < min(free, SEARCH_ON * limit)
 
         search(spots, per_spot)
         if not found and geometry.robot.mobile:
