@@ -786,10 +786,13 @@ def test_a_dead_end_does_not_plan_from_before_a_step_that_moved_what_the_facts_n
     assert earlier and {(e["step"], e["from_step"]) for e in earlier} == {(3, 2)}
 
 
-def test_a_dead_end_met_again_is_not_proved_again(host):
+def test_a_dead_end_met_again_is_not_proved_again(host, capsys):
     """z (untakeable) blocks a in the first two epochs: the same state, proved to have no plan in epoch 0,
-    comes back after the reset; its answer is known, no task-planner call. Mutation: ``call_task_planner``
-    without the ``dead_ends.known`` lookup (a second proof, no known_dead_end event)."""
+    comes back after the reset; its answer is known, no task-planner call, and the log says which call
+    proved it. Mutations: ``call_task_planner`` without the ``dead_ends.known`` lookup (a second proof, no
+    known_dead_end event); the cli's ``known_dead_end`` line removed."""
+    from interlayer.cli import progress_printer
+
     def script(item, label, world, n):
         return Failure("obstruction", ("z",)) if n <= 4 else None
 
@@ -799,6 +802,11 @@ def test_a_dead_end_met_again_is_not_proved_again(host):
     assert proofs == [2] and result.task_planner_calls == 2
     assert [(e["from_step"], e["proved_by"]) for e in events(result, "known_dead_end")] == [(0, 2)]
     assert result.counts["known_dead_ends"] == 1
+    capsys.readouterr()
+    show = progress_printer(False)
+    for e in events(result, "known_dead_end"):
+        show(e)
+    assert "the state from step 0 has no plan: task-planner call #2 proved it" in capsys.readouterr().err
 
 
 def test_a_state_with_more_obstructions_than_a_dead_end_is_one(host):
