@@ -842,3 +842,17 @@ def test_only_atoms_that_can_only_forbid_actions_extend_a_known_dead_end():
     assert dead.known(proved) == 7 and dead.known(proved | {("Obstructs", "a", "gp_z", "z")}) == 7
     assert dead.known(proved | {("Takeable", "z")}) is None  # z could now be taken out of the way
     assert dead.known(model.init) is None  # fewer obstructions: no proof
+
+
+def test_an_effect_condition_that_reads_a_predicate_positively_makes_it_no_forbidding_one():
+    """An action that adds something when an obstruction holds can use it: Obstructs is then no longer
+    one that only forbids. Mutation: ``forbidding_predicates`` without the effects' conditions."""
+    import dataclasses
+
+    from interlayer.deadends import forbidding_predicates
+
+    take = dataclasses.replace(SPEC.actions[0], effect="(and (Done ?x) (forall (?o - item) (when (Obstructs ?o ?p ?x) (Takeable ?o))))")
+    spec = dataclasses.replace(SPEC, actions=(take,))
+    problem = Problem(spec, {"a": "item", "z": "item"}, frozenset({("Takeable", "a")}), "(Done a)",
+                      ScriptedGeometry(lambda *a: None), {})
+    assert forbidding_predicates(abstract(problem)) == set()
