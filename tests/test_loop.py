@@ -784,3 +784,75 @@ def test_a_dead_end_does_not_plan_from_before_a_step_that_moved_what_the_facts_n
     assert result.status == "interrupted"
     earlier = events(result, "earlier")
     assert earlier and {(e["step"], e["from_step"]) for e in earlier} == {(3, 2)}
+
+
+def test_a_dead_end_met_again_is_not_proved_again(host, capsys):
+    """z (untakeable) blocks a in the first two epochs: the same state, proved to have no plan in epoch 0,
+    comes back after the reset; its answer is known, no task-planner call, and the log says which call
+    proved it. Mutations: ``call_task_planner`` without the ``dead_ends.known`` lookup (a second proof, no
+    known_dead_end event); the cli's ``known_dead_end`` line removed."""
+    from interlayer.cli import progress_printer
+
+    def script(item, label, world, n):
+        return Failure("obstruction", ("z",)) if n <= 4 else None
+
+    result, _ = run(script, host=host, max_traj_count=1)
+    assert result.status == "solved" and len(events(result, "reset")) == 2
+    proofs = [e["call"] for e in events(result, "task_plan") if e["status"] == "unsolvable"]
+    assert proofs == [2] and result.task_planner_calls == 2
+    assert [(e["from_step"], e["proved_by"]) for e in events(result, "known_dead_end")] == [(0, 2)]
+    assert result.counts["known_dead_ends"] == 1
+    capsys.readouterr()
+    show = progress_printer(False)
+    for e in events(result, "known_dead_end"):
+        show(e)
+    assert "the state from step 0 has no plan: task-planner call #2 proved it" in capsys.readouterr().err
+
+
+def test_a_state_with_more_obstructions_than_a_dead_end_is_one(host):
+    """Epoch 0 proves that a state where z blocks a has no plan; in epoch 1 z and b block a: more atoms of
+    Obstructs, which occurs only negated in preconditions, so the bigger state has no plan either, without
+    a call. Mutation: ``DeadEnds.known`` matching equal states only (then a second proof is made)."""
+    def script(item, label, world, n):
+        if n <= 2:
+            return Failure("obstruction", ("z",))
+        return Failure("obstruction", ("z", "b")) if n <= 4 else None
+
+    result, _ = run(script, host=host, max_traj_count=1)
+    assert result.status == "solved"
+    facts = by_epoch(result, "failure", lambda e: e["facts"])
+    assert facts[1] == ["(Obstructs b gp_a a)", "(Obstructs z gp_a a)"]
+    assert [e["call"] for e in events(result, "task_plan") if e["status"] == "unsolvable"] == [2]
+    assert [e["proved_by"] for e in events(result, "known_dead_end")] == [2]
+
+
+def test_only_atoms_that_can_only_forbid_actions_extend_a_known_dead_end():
+    """Obstructs occurs only negated; Takeable and IsGP only positively, Done both ways (precondition and
+    goal). Mutation: ``forbidding_predicates`` returning every predicate (a takeable z would then be
+    called a dead end)."""
+    from interlayer.deadends import DeadEnds
+
+    problem = Problem(SPEC, {"a": "item", "z": "item"}, frozenset({("Takeable", "a")}), "(Done a)",
+                      ScriptedGeometry(lambda *a: None), {})
+    model = abstract(problem)
+    dead = DeadEnds(model)
+    assert dead.forbidding == {"Obstructs"}
+    proved = model.init | {("Obstructs", "z", "gp_a", "a")}
+    dead.add(proved, 7)
+    assert dead.known(proved) == 7 and dead.known(proved | {("Obstructs", "a", "gp_z", "z")}) == 7
+    assert dead.known(proved | {("Takeable", "z")}) is None  # z could now be taken out of the way
+    assert dead.known(model.init) is None  # fewer obstructions: no proof
+
+
+def test_an_effect_condition_that_reads_a_predicate_positively_makes_it_no_forbidding_one():
+    """An action that adds something when an obstruction holds can use it: Obstructs is then no longer
+    one that only forbids. Mutation: ``forbidding_predicates`` without the effects' conditions."""
+    import dataclasses
+
+    from interlayer.deadends import forbidding_predicates
+
+    take = dataclasses.replace(SPEC.actions[0], effect="(and (Done ?x) (forall (?o - item) (when (Obstructs ?o ?p ?x) (Takeable ?o))))")
+    spec = dataclasses.replace(SPEC, actions=(take,))
+    problem = Problem(spec, {"a": "item", "z": "item"}, frozenset({("Takeable", "a")}), "(Done a)",
+                      ScriptedGeometry(lambda *a: None), {})
+    assert forbidding_predicates(abstract(problem)) == set()

@@ -54,6 +54,9 @@ def progress_printer(verbose: bool):
                 f" -> learned {relabel(', '.join(e['facts']), labels)}")
         elif kind == "replan":
             log(f"{t} replanned from step {e.get('from_step', e['fail_step'])}, kept a prefix of {len(e['prefix'])} action(s)")
+        elif kind == "known_dead_end":
+            log(f"{t} the state from step {e['from_step']} has no plan: task-planner call #{e['proved_by']} proved it "
+                "(the same state, or one with fewer of the facts that only forbid actions)")
         elif kind == "earlier":
             log(f"{t} the updated state at step {e['step']} has no plan: planning from before step {e['from_step']} "
                 f"{relabel(e['action'], labels)} with the same facts")

@@ -10,6 +10,7 @@ from .abstraction import TaskModel
 from .domain import GroundStep
 from .names import relabel
 from .deadline import Deadline, DeadlineExceeded
+from .deadends import DeadEnds
 from .refine import NO_CANDIDATES, ROBOT_MOVED, EpochState, GiveUp, Infeasible, PoseGenerator, Refinement, Refiner, drawn_within, stable_seed
 from .result import Result
 from .trace import Stats, Trace
@@ -69,6 +70,7 @@ class InterfaceLayer:
         self.kept_why: list = []
         self.times_learned: Counter = Counter()  # fact -> how often it was learned in this epoch
         self.task_calls = 0
+        self.dead_ends = DeadEnds(model)  # states proved to have no plan: never proved twice
         self.replans = 0
         self.watch = ProgressWatch(model)
         self.plan: list = []
@@ -83,7 +85,14 @@ class InterfaceLayer:
         return self.deadline.over()
 
     def call_task_planner(self, state: frozenset, from_step: int):
-        """callClassicalPlanner (Alg. 1, lines 2 and 10), always with a timeout."""
+        """callClassicalPlanner (Alg. 1, lines 2 and 10), always with a timeout; a state an earlier call
+        proved to have no plan (deadends.py) gets that answer without a call."""
+        proved = self.dead_ends.known(state)
+        if proved is not None:
+            self.stats.count("known_dead_ends")
+            self.trace.emit("known_dead_end", from_step=from_step, state_size=len(state), proved_by=proved)
+            self.last_task_status, self.last_task_reason = "unsolvable", f"task-planner call #{proved} proved it has no plan"
+            return None
         self.task_calls += 1
         from .supervisor import grace
 
@@ -110,6 +119,8 @@ class InterfaceLayer:
                                        f"planner.task_timeout = {self.settings.task_timeout:g} s")
             raise DeadlineExceeded(where="the task planner")
         self.last_task_status, self.last_task_reason = res.status, res.reason
+        if res.status == "unsolvable":
+            self.dead_ends.add(state, self.task_calls)
         return plan if res.status == "solved" else None
 
     def make_generator(self, index: int, step: GroundStep, world) -> PoseGenerator:

@@ -683,6 +683,10 @@ class _Explainer:
                 html.append(f'<div class="ev replan">{t}<h3>Replanned from step {start}</h3>{kept}; '
                             f'the new plan has {len(plan)} step(s) and refinement resumes at step {start}'
                             f"{keep_ref}.</div>")
+            elif kind == "known_dead_end":
+                html.append(f'<div class="ev dead">{t}<h3>No plan from step {e.get("from_step")}: known</h3>Task-planner '
+                            f'call #{e.get("proved_by")} proved it (the same state, or one with fewer of the facts that '
+                            "only forbid actions): no call.</div>")
             elif kind == "earlier":
                 html.append(f'<div class="ev dead">{t}<h3>No plan at step {e.get("step")}: planning from before step '
                             f'{e.get("from_step")}</h3>The same facts, from before <code>{escape(self.shown(e.get("action", "")))}</code> '
