@@ -715,9 +715,10 @@ class HandGeometry:
         return {i for i, _ in before ^ after}
 
 
-def _hand_run(host, blocked, goal="(Done a)", first=None, until=None):
+def _hand_run(host, blocked, goal="(Done a)", first=None, until=None, spec=HAND, init=frozenset({("Free",)}), also=None):
     """``first``: the first task plan (a stub gives it; the real planner every later one); ``until``: the
-    kind of trace event after which the run is interrupted (its result then)."""
+    kind of trace event after which the run is interrupted (its result then); ``also``: a translator run
+    after the domain's own."""
     from interlayer.loop import Interrupted
     from interlayer.planning import TaskPlanResult
     from interlayer.trace import Trace
@@ -726,7 +727,7 @@ def _hand_run(host, blocked, goal="(Done a)", first=None, until=None):
         if event["type"] == until:
             raise KeyboardInterrupt
 
-    problem = Problem(HAND, {"a": "item", "b": "item"}, frozenset({("Free",)}), goal, HandGeometry(blocked), {})
+    problem = Problem(spec, {"a": "item", "b": "item"}, init, goal, HandGeometry(blocked), {})
     task = host["task_planners"].get("fast-downward").factory({})
     if first is not None:
         real = task
@@ -742,7 +743,7 @@ def _hand_run(host, blocked, goal="(Done a)", first=None, until=None):
                 return real.validate_plan(model, state, plan)
 
         task = FirstFixed()
-    translators = [("templates", host["failure_translators"].get("templates").factory)]
+    translators = [("templates", host["failure_translators"].get("templates").factory)] + ([("also", also)] if also else [])
     gens = {"grab": generator(), "put": generator()}
     layer = InterfaceLayer(abstract(problem), task, None, gens, translators, LoopSettings(time_limit=30.0),
                            trace=Trace([stop]))
@@ -768,6 +769,27 @@ def test_a_dead_end_with_an_item_in_hand_plans_again_from_before_it_was_grabbed(
     assert [(e["step"], e["from_step"], e["action"]) for e in earlier] == [(1, 0, "grab(a)")]
     replan = events(result, "replan")[0]
     assert replan["fail_step"] == 1 and replan["from_step"] == 0 and replan["prefix"] == []
+
+
+def test_a_dead_end_whose_facts_delete_an_atom_plans_again_from_before_it_too(host):
+    """As above, and a translator also learns an atom false (``logic.negated``, as the plugin API allows):
+    the objects the facts name are read off the deleted atom too, and the loop plans again from before
+    grab(a). Mutation: ``_atom`` returning a negated fact's ``Pred`` as it stands (the run then raises
+    "'Pred' object is not subscriptable")."""
+    import dataclasses
+
+    from interlayer import logic
+
+    def blocked(item, world):
+        return ("b",) if item == "a" and ("b", "put") not in world else ()
+
+    spec = dataclasses.replace(HAND, predicates={**HAND.predicates, "Lit": ("item",)})
+    result = _hand_run(host, blocked, spec=spec, init=frozenset({("Free",), ("Lit", "b")}),
+                       also=lambda failure, step, model: {logic.negated(("Lit", "b"))})
+    assert result.status == "solved", result.reason
+    assert [str(s) for s in result.plan] == ["grab(b)", "put(b, pd_b)", "grab(a)", "put(a, pd_a)"]
+    assert [(e["step"], e["from_step"]) for e in events(result, "earlier")] == [(1, 0)]
+    assert "(not (Lit b))" in events(result, "failure")[0]["facts"]
 
 
 def test_a_dead_end_does_not_plan_from_before_a_step_that_moved_what_the_facts_name(host):

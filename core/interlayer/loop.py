@@ -199,7 +199,7 @@ class InterfaceLayer:
         """A dead end at the failing step (e.g. an object in hand that can be put down nowhere): plan again
         with the same facts from before an earlier step that moved an object, latest first, while no step
         in between moved an object the facts name (they were learned where those stood, and hold there
-        too). ``(plan, step, state)``, or ``(None, fail step, state)`` when there is none. Needs the
+        too). ``(plan, step, state)``, or ``(None, fail step, None)`` when there is none. Needs the
         geometry's ``moved``; at most EARLIER_LIMIT task-planner calls."""
         f = partial.fail_step
         moved = getattr(self.geometry, "moved", None)
@@ -419,7 +419,8 @@ class InterfaceLayer:
 
 
 def _atom(literal):
-    return literal.arg if isinstance(literal, logic.Not) else literal
+    """The ground atom (a tuple) of a learned fact, also of a ``logic.negated`` one."""
+    return logic.ground_atom(literal.arg, {}) if isinstance(literal, logic.Not) else literal
 
 
 def _world_at(outcomes: dict, k: int, world0):
@@ -428,7 +429,7 @@ def _world_at(outcomes: dict, k: int, world0):
 
 
 def _predicate(literal) -> str:
-    return literal.arg.name if isinstance(literal, logic.Not) else literal[0]
+    return _atom(literal)[0]
 
 
 def _with_result(gen):
